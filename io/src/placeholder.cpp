@@ -1,0 +1,1 @@
+// placeholder: delete once the module has real sources

@@ -1,0 +1,39 @@
+#pragma once
+// The polygon soup that file readers produce: positions, faces in file order, materials.
+// Nothing is validated beyond syntax here; mesh::build_scene does the geometric checks.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lambert/mesh/types.hpp"
+
+namespace lambert::mesh {
+
+struct Material {
+  std::string name;
+  RGB reflectance = RGB::Constant(0.5);  // diffuse albedo rho per channel, must lie in [0, 1)
+  RGB emission = RGB::Zero();            // emitted radiance Le, W m^-2 sr^-1, must be >= 0
+  SourceLoc defined_at;                  // where the values came from (MTL line, JSON file, ...)
+};
+
+struct SoupFace {
+  std::vector<int> vertices;  // 0-based indices into PolygonSoup::positions, >= 3, in winding order
+  int material = 0;           // index into PolygonSoup::materials
+  int group = -1;             // index into PolygonSoup::groups (OBJ o/g name), -1 = none
+  int line = 0;               // 1-based line of the face in the source file (0 for binary formats)
+};
+
+struct PolygonSoup {
+  std::string file;                  // source path, for messages
+  std::vector<Vec3> positions;       // metres
+  std::vector<int> position_lines;   // source line of each position (0 if unknown)
+  std::vector<SoupFace> faces;       // file order: faces[k] is input face k (face_id = k)
+  std::vector<Material> materials;   // materials[0] is the default material "default"
+  std::vector<std::string> groups;   // OBJ object/group names
+  long faces_without_material = 0;   // faces that got the default material (reported)
+};
+
+// A soup with only the default material (grey, rho = 0.5, no emission).
+PolygonSoup make_empty_soup(std::string file);
+
+}  // namespace lambert::mesh

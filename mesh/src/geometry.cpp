@@ -1,0 +1,138 @@
+#include "lambert/mesh/geometry.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace lambert::mesh {
+
+Vec3 newell_normal(std::span<const Vec3> polygon) {
+  Vec3 n = Vec3::Zero();
+  const size_t m = polygon.size();
+  // Relative to the first corner: cancels the large offsets of scenes far from the origin.
+  const Vec3 o = m ? polygon[0] : Vec3::Zero();
+  for (size_t k = 0; k < m; ++k) n += (polygon[k] - o).cross(polygon[(k + 1) % m] - o);
+  return n;
+}
+
+double planarity_deviation(std::span<const Vec3> polygon) {
+  Vec3 n = newell_normal(polygon);
+  const double len = n.norm();
+  if (!(len > 0)) return 0;
+  n /= len;
+  Vec3 c = Vec3::Zero();
+  for (const Vec3& p : polygon) c += p;
+  c /= double(polygon.size());
+  double worst = 0;
+  for (const Vec3& p : polygon) worst = std::max(worst, std::abs((p - c).dot(n)));
+  return worst;
+}
+
+namespace {
+// Twice the signed area of 2D triangle (a, b, c).
+double orient2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+}
+}  // namespace
+
+std::vector<std::array<int, 3>> triangulate_polygon(std::span<const Vec3> polygon, const Vec3& normal) {
+  const int m = static_cast<int>(polygon.size());
+  std::vector<std::array<int, 3>> tris;
+  if (m < 3) return tris;
+  if (m == 3) return {{0, 1, 2}};
+  // Project on the plane with an orthonormal basis (u, v) so that (u, v, n) is right-handed:
+  // counter-clockwise in 2D then means the polygon's own winding.
+  const Vec3 n = normal.normalized();
+  const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
+  const Vec3 v = n.cross(u);
+  std::vector<Eigen::Vector2d> p(m);
+  for (int k = 0; k < m; ++k) {
+    const Vec3 d = polygon[k] - polygon[0];
+    p[k] = {d.dot(u), d.dot(v)};
+  }
+  std::vector<int> idx(m);
+  for (int k = 0; k < m; ++k) idx[k] = k;
+  double scale = 0;
+  for (auto& q : p) scale = std::max(scale, q.cwiseAbs().maxCoeff());
+  const double eps = 1e-14 * scale * scale;
+  int guard = 0;
+  while (idx.size() > 3 && guard < 4 * m * m) {
+    ++guard;
+    const int r = static_cast<int>(idx.size());
+    bool clipped = false;
+    for (int k = 0; k < r; ++k) {
+      const int a = idx[(k + r - 1) % r], b = idx[k], c = idx[(k + 1) % r];
+      if (orient2(p[a], p[b], p[c]) <= eps) continue;  // reflex or flat corner: not an ear
+      bool inside = false;
+      for (int t : idx) {
+        if (t == a || t == b || t == c) continue;
+        if (orient2(p[a], p[b], p[t]) >= -eps && orient2(p[b], p[c], p[t]) >= -eps &&
+            orient2(p[c], p[a], p[t]) >= -eps) {
+          inside = true;
+          break;
+        }
+      }
+      if (inside) continue;
+      tris.push_back({a, b, c});
+      idx.erase(idx.begin() + k);
+      clipped = true;
+      break;
+    }
+    if (!clipped) {
+      // Only flat corners left (collinear runs): drop a collinear corner if any, else give up.
+      bool dropped = false;
+      for (int k = 0; k < r && !dropped; ++k) {
+        const int a = idx[(k + r - 1) % r], b = idx[k], c = idx[(k + 1) % r];
+        if (std::abs(orient2(p[a], p[b], p[c])) <= eps) {
+          idx.erase(idx.begin() + k);
+          dropped = true;
+        }
+      }
+      if (!dropped) return {};
+    }
+  }
+  if (idx.size() == 3) {
+    if (orient2(p[idx[0]], p[idx[1]], p[idx[2]]) > eps) tris.push_back({idx[0], idx[1], idx[2]});
+  }
+  return tris;
+}
+
+PatchGeometry PatchGeometry::from_polygons(const std::vector<std::vector<Vec3>>& polygons) {
+  PatchGeometry g;
+  const int n = static_cast<int>(polygons.size());
+  g.offsets.reserve(n + 1);
+  g.offsets.push_back(0);
+  g.triangle_offsets.push_back(0);
+  for (int p = 0; p < n; ++p) {
+    const auto& poly = polygons[p];
+    if (poly.size() < 3)
+      throw InputError("polygon " + std::to_string(p) + " has " + std::to_string(poly.size()) +
+                       " corners (need at least 3)");
+    const Vec3 nn = newell_normal(poly);
+    const double twice_area = nn.norm();
+    if (!(twice_area > 0) || !std::isfinite(twice_area))
+      throw InputError("polygon " + std::to_string(p) + " has zero area");
+    const Vec3 unit = nn / twice_area;
+    auto tris = triangulate_polygon(poly, unit);
+    if (tris.empty())
+      throw InputError("polygon " + std::to_string(p) + " could not be triangulated (self-intersecting?)");
+    const int base = static_cast<int>(g.points.size());
+    Vec3 c = Vec3::Zero();
+    double a = 0;
+    for (auto& t : tris) {
+      const Vec3 &A = poly[t[0]], &B = poly[t[1]], &C = poly[t[2]];
+      const double at = 0.5 * (B - A).cross(C - A).dot(unit);
+      a += at;
+      c += at * (A + B + C) / 3.0;
+      g.triangles.push_back({base + t[0], base + t[1], base + t[2]});
+    }
+    for (const Vec3& q : poly) g.points.push_back(q);
+    g.offsets.push_back(static_cast<int>(g.points.size()));
+    g.triangle_offsets.push_back(static_cast<int>(g.triangles.size()));
+    g.normal.push_back(unit);
+    g.area.push_back(a);
+    g.centroid.push_back(c / a);
+  }
+  return g;
+}
+
+}  // namespace lambert::mesh
