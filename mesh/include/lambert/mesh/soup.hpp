@@ -31,6 +31,7 @@ struct PolygonSoup {
   std::vector<Material> materials;   // materials[0] is the default material "default"
   std::vector<std::string> groups;   // OBJ object/group names
   long faces_without_material = 0;   // faces that got the default material (reported)
+  std::vector<std::string> warnings; // reader-level warnings (ignored statements, unused materials, ...)
 };
 
 // A soup with only the default material (grey, rho = 0.5, no emission).
