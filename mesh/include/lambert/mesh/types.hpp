@@ -1,6 +1,7 @@
 #pragma once
 // Basic value types shared by every lambert module.
 #include <Eigen/Core>
+#include <Eigen/Geometry>  // cross products
 #include <stdexcept>
 #include <string>
 
