@@ -7,7 +7,6 @@ namespace lambert::formfactor {
 
 void DenseMatrixOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
   const Eigen::Index n = F_.rows();
-  // Row blocks in parallel; within a block Eigen's GEMV streams the columns.
   tbb::parallel_for(tbb::blocked_range<Eigen::Index>(0, n, 256), [&](const tbb::blocked_range<Eigen::Index>& r) {
     const Eigen::Index b = r.begin(), m = r.end() - r.begin();
     y.segment(b, m).noalias() = F_.middleRows(b, m) * x;

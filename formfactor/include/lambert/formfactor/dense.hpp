@@ -12,8 +12,11 @@ namespace lambert::formfactor {
 
 class DenseMatrixOperator final : public TransportOperator {
  public:
+  // Row-major: apply() and Gauss-Seidel's row_dot() both stream contiguous rows.
+  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
   DenseMatrixOperator() = default;
-  explicit DenseMatrixOperator(Eigen::MatrixXd F) : F_(std::move(F)) {}
+  explicit DenseMatrixOperator(Matrix F) : F_(std::move(F)) {}
 
   int size() const override { return static_cast<int>(F_.rows()); }
   void apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const override;
@@ -21,14 +24,14 @@ class DenseMatrixOperator final : public TransportOperator {
   double diagonal(int i) const override { return F_(i, i); }
   double row_sum(int i) const override;
 
-  const Eigen::MatrixXd& matrix() const { return F_; }  // F(i, j): from patch i to patch j
-  Eigen::MatrixXd& matrix() { return F_; }
+  const Matrix& matrix() const { return F_; }  // F(i, j): from patch i to patch j
+  Matrix& matrix() { return F_; }
 
   // Bytes a dense matrix of n patches needs; used to refuse oversized requests before allocating.
   static std::size_t bytes_for(std::size_t n) { return n * n * sizeof(double); }
 
  private:
-  Eigen::MatrixXd F_;  // column-major; apply() walks it column by column (contiguous)
+  Matrix F_;
 };
 
 }  // namespace lambert::formfactor
