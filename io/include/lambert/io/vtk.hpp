@@ -1,0 +1,24 @@
+#pragma once
+// ParaView output: the solved scene as a VTK XML unstructured grid (.vtu).
+#include <string>
+
+#include "lambert/mesh/scene.hpp"
+
+namespace lambert::io {
+
+// Writes an XML unstructured grid (.vtu, appended raw binary, zlib-compressed, Float64 values).
+// Cells = patches in scene order (VTK_TRIANGLE; VTK_QUAD for convex quads; VTK_POLYGON otherwise),
+// points = mesh::split_vertices(scene, crease_angle_deg), so vertex averages never cross a material
+// boundary or a crease.
+//   point data: "radiance" (3, W m^-2 sr^-1, area-weighted average of the adjacent cells' radiance)
+//   cell data:  "radiance" (3, W m^-2 sr^-1), "irradiance" (3, W m^-2), "reflectance" (3),
+//               "emission" (3, W m^-2 sr^-1), "face_id" (Int64, input face index, 0-based file order),
+//               "area" (m^2), "material_id" (Int32, index into "material_names")
+//   field data: "material_names" (strings, one per scene material), "source" (scene.source)
+// radiance and irradiance: patches x 3. Throws std::invalid_argument if their row count is not
+// scene.patches() or the crease angle is outside [0, 180]. The file is written to a temporary sibling
+// and renamed when complete; on failure the temporary is removed and lambert::InputError names `path`.
+void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorField& radiance,
+               const ColorField& irradiance, double crease_angle_deg = mesh::VertexSplit::kDefaultCreaseDeg);
+
+}  // namespace lambert::io
