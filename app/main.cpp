@@ -1,2 +1,123 @@
+// lambert: command-line front end. Parses options, runs the stages, prints progress and a summary,
+// writes --stats JSON. All numerical work lives in the libraries.
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
 #include <cstdio>
-int main() { std::puts("lambert (skeleton)"); return 0; }
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <thread>
+
+#include "commands.hpp"
+#include "lambert/mesh/types.hpp"
+
+#ifndef LAMBERT_VERSION
+#define LAMBERT_VERSION "dev"
+#endif
+
+using namespace lambert;
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "lambert " LAMBERT_VERSION " - radiosity (diffuse interreflection) solver.\n"
+      "Reads OBJ+MTL / PLY / OFF scenes (metres; MTL Kd = diffuse reflectance, Ke = emitted radiance in\n"
+      "W m^-2 sr^-1), computes form factors, solves L = Le + rho F L per colour channel and writes VTK\n"
+      "(.vtu) for ParaView. See README.md for the conventions and every output array."};
+  app.set_version_flag("--version", LAMBERT_VERSION);
+  app.require_subcommand(1);
+  app.fallthrough(false);
+
+  app::CommonOptions common;
+  auto add_common = [&](CLI::App* sub, bool with_output) {
+    sub->add_option("scene", common.scene, "Scene file: .obj (+ .mtl), .ply or .off")->required()->check(CLI::ExistingFile);
+    sub->add_option("--materials", common.materials,
+                    "JSON file mapping material names or input-face ranges to reflectance and emission "
+                    "(overrides MTL values; see README)")
+        ->check(CLI::ExistingFile);
+    sub->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+    sub->add_flag("--quiet,-q", common.quiet, "No progress lines, warnings or summary on stderr (errors still print)");
+    if (with_output) sub->add_option("--stats", common.stats, "Write run statistics as JSON to this file");
+  };
+  auto add_formfactor = [&](CLI::App* sub, const char* tolerance_flag) {
+    sub->add_flag("--no-visibility", common.no_visibility, "Ignore occlusion (every pair sees each other fully)");
+    sub->add_option(tolerance_flag, common.ff_tolerance,
+                    "Absolute tolerance on each form factor F_ij (default: the form-factor module's default)")
+        ->check(CLI::PositiveNumber);
+    sub->add_option("--rays", common.rays_per_pair, "Visibility rays per partially occluded pair (default: module default)")
+        ->check(CLI::PositiveNumber);
+  };
+
+  // solve
+  auto* solve = app.add_subcommand("solve", "Solve the radiosity problem and write a .vtu for ParaView");
+  add_common(solve, true);
+  solve->add_option("-o,--output", common.output, "Output file (.vtu)")->required();
+  add_formfactor(solve, "--ff-tolerance");
+  solve->add_option("--method", common.method, "Solver: auto, jacobi, gauss-seidel, bicgstab")->capture_default_str();
+  solve->add_option("--tolerance", common.solve_tolerance, "Relative residual at which the solve stops")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  solve->add_option("--max-iterations", common.max_iterations, "Iteration limit per channel (default: solver default)")
+      ->check(CLI::PositiveNumber);
+  solve->add_option("--crease", common.crease_deg,
+                    "Per-vertex averages never cross an edge whose normals differ by more than this (degrees)")
+      ->check(CLI::Range(0.0, 180.0))
+      ->capture_default_str();
+
+  // info
+  auto* info = app.add_subcommand("info", "Print patches, materials, bounding box, emitted power and validation warnings");
+  add_common(info, false);
+
+  // formfactors
+  auto* ff = app.add_subcommand("formfactors", "Compute form factors and write i,j,F_ij per nonzero entry (input-face indices)");
+  add_common(ff, true);
+  ff->add_option("-o,--output", common.output, "Output file (.csv): one line i,j,F_ij per nonzero entry, no header")->required();
+  add_formfactor(ff, "--tolerance");
+
+  // verify
+  auto* verify = app.add_subcommand("verify", "Solve cases with exact answers and compare");
+  verify->require_subcommand(1);
+  app::VerifyOptions vo;
+  auto* sphere = verify->add_subcommand("sphere", "Closed icosphere with inward normals: exact answer E0/(1-rho), or the continuum formula");
+  sphere->add_option("--subdivisions", vo.subdivisions, "Icosphere subdivision level K (20*4^K triangles)")->check(CLI::Range(0, 7));
+  sphere->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
+  sphere->add_option("--emission", vo.emission, "uniform | cap | linear")->check(CLI::IsMember({"uniform", "cap", "linear"}));
+  sphere->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab");
+  sphere->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  auto* furnace = verify->add_subcommand("furnace", "Closed room with an occluding block, uniform E0 and rho: exact answer E0/(1-rho)");
+  furnace->add_option("--divisions", vo.divisions, "Quads per room face edge")->check(CLI::Range(1, 64));
+  furnace->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
+  furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab");
+  furnace->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  std::optional<tbb::global_control> threads;
+  if (common.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(common.threads));
+
+  try {
+    if (solve->parsed()) return app::run_solve(common);
+    if (info->parsed()) return app::run_info(common);
+    if (ff->parsed()) return app::run_formfactors(common);
+    if (sphere->parsed()) return app::run_verify_sphere(vo, common);
+    if (furnace->parsed()) return app::run_verify_furnace(vo, common);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "lambert: error: %s\n", e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "lambert: error: out of memory\n");
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "lambert: internal error: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}

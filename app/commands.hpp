@@ -1,0 +1,36 @@
+#pragma once
+// The CLI's subcommands. Each returns the process exit status; bad input throws lambert::InputError.
+#include <string>
+
+namespace lambert::app {
+
+struct CommonOptions {
+  std::string scene, materials, output, stats;
+  int threads = 0;  // 0 = all cores
+  bool quiet = false;
+  // form factors (0 = module default)
+  bool no_visibility = false;
+  double ff_tolerance = 0;
+  int rays_per_pair = 0;
+  // solve
+  std::string method = "auto";
+  double solve_tolerance = 1e-8;
+  int max_iterations = 0;
+  double crease_deg = 30.0;
+};
+
+struct VerifyOptions {
+  int subdivisions = -1;  // -1 = solver's default
+  int divisions = -1;
+  double rho = -1;
+  std::string emission = "uniform";
+  std::string method = "auto";
+};
+
+int run_solve(const CommonOptions& o);
+int run_info(const CommonOptions& o);
+int run_formfactors(const CommonOptions& o);
+int run_verify_sphere(const VerifyOptions& v, const CommonOptions& o);
+int run_verify_furnace(const VerifyOptions& v, const CommonOptions& o);
+
+}  // namespace lambert::app

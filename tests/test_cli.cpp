@@ -1,0 +1,221 @@
+// End-to-end runs of the lambert CLI: examples solve, bad input exits non-zero with a message
+// naming the problem, outputs are complete or absent.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include <vtkCellData.h>
+#include <vtkDataArray.h>
+#include <vtkPointData.h>
+#include <vtkSmartPointer.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkXMLUnstructuredGridReader.h>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  int status;
+  std::string output;  // stdout and stderr together
+};
+
+Run run(const std::string& args) {
+  const std::string cmd = std::string(LAMBERT_BINARY) + " " + args + " 2>&1";
+  Run r{0, {}};
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return {-1, "popen failed"};
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  const int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    dir = fs::temp_directory_path() / ("lambert_cli_" + std::to_string(rd()));
+    fs::create_directories(dir);
+  }
+  void TearDown() override { fs::remove_all(dir); }
+  std::string path(const std::string& name) const { return (dir / name).string(); }
+  std::string write(const std::string& name, const std::string& text) const {
+    std::ofstream(path(name)) << text;
+    return path(name);
+  }
+  // Files in dir other than the given ones (temporaries left behind, partial outputs).
+  std::vector<std::string> files() const {
+    std::vector<std::string> v;
+    for (auto& e : fs::directory_iterator(dir)) v.push_back(e.path().filename().string());
+    return v;
+  }
+  fs::path dir;
+};
+
+const std::string kExamples = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
+
+// A unit square light facing a unit square floor 1 m below: F = 0.1998248957 each way.
+const std::string kTwoSquares =
+    "mtllib two.mtl\n"
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+    "v 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+    "usemtl floor\nf 1 2 3 4\n"
+    "usemtl lamp\nf 5 8 7 6\n";
+const std::string kTwoMtl = "newmtl floor\nKd 0.5 0.5 0.5\nnewmtl lamp\nKd 0 0 0\nKe 1 1 1\n";
+
+vtkSmartPointer<vtkUnstructuredGrid> read_vtu(const std::string& file) {
+  auto reader = vtkSmartPointer<vtkXMLUnstructuredGridReader>::New();
+  reader->SetFileName(file.c_str());
+  reader->Update();
+  return reader->GetOutput();
+}
+
+}  // namespace
+
+TEST_F(Cli, HelpDocumentsEveryCommand) {
+  const Run r = run("--help");
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const char* cmd : {"solve", "info", "formfactors", "verify"}) EXPECT_NE(r.output.find(cmd), std::string::npos) << cmd;
+  const Run s = run("solve --help");
+  for (const char* flag : {"--materials", "--stats", "--threads", "--quiet", "--method", "--tolerance", "-o"})
+    EXPECT_NE(s.output.find(flag), std::string::npos) << flag << "\n" << s.output;
+}
+
+TEST_F(Cli, UnknownOptionFails) {
+  const Run r = run("solve " + kExamples + "cornell_box.obj -o " + path("x.vtu") + " --bogus");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("--bogus"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(path("x.vtu")));
+}
+
+// Every bundled example solves, writes a .vtu with radiance, and a stats file with the promised keys.
+TEST_F(Cli, EveryExampleSolvesEndToEnd) {
+  for (const char* name : {"cornell_box", "room"}) {
+    SCOPED_TRACE(name);
+    const std::string out = path(std::string(name) + ".vtu"), stats = path(std::string(name) + ".json");
+    const Run r = run("solve " + kExamples + name + ".obj -o " + out + " --stats " + stats);
+    ASSERT_EQ(r.status, 0) << r.output;
+    auto grid = read_vtu(out);
+    ASSERT_GT(grid->GetNumberOfCells(), 0);
+    vtkDataArray* L = grid->GetCellData()->GetArray("radiance");
+    ASSERT_NE(L, nullptr);
+    ASSERT_NE(grid->GetPointData()->GetArray("radiance"), nullptr);
+    double max_l = 0;
+    for (vtkIdType c = 0; c < L->GetNumberOfTuples(); ++c) max_l = std::max(max_l, L->GetTuple3(c)[0]);
+    EXPECT_GT(max_l, 0) << "the example has an emitter, so some radiance must be positive";
+    std::ifstream in(stats);
+    const auto j = nlohmann::json::parse(in);
+    for (const char* key : {"patches", "phases", "iterations", "residual", "version", "warnings"})
+      EXPECT_TRUE(j.contains(key)) << key;
+    EXPECT_EQ(j["patches"].get<int>(), grid->GetNumberOfCells());
+    EXPECT_LE(j["residual"].get<double>(), 1e-8);
+  }
+}
+
+// Two facing unit squares: the floor's radiance is rho * F * Le = 0.5 * 0.1998248957 (one bounce back
+// to the black lamp adds nothing). Tolerance 1e-7: the catalogue value's own precision.
+TEST_F(Cli, TwoSquaresFloorRadianceMatchesCatalogue) {
+  write("two.mtl", kTwoMtl);
+  const std::string obj = write("two.obj", kTwoSquares), out = path("two.vtu");
+  const Run r = run("solve " + obj + " -o " + out + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto grid = read_vtu(out);
+  vtkDataArray* L = grid->GetCellData()->GetArray("radiance");
+  vtkDataArray* H = grid->GetCellData()->GetArray("irradiance");
+  vtkDataArray* id = grid->GetCellData()->GetArray("face_id");
+  ASSERT_TRUE(L && H && id);
+  for (vtkIdType c = 0; c < grid->GetNumberOfCells(); ++c) {
+    if (id->GetTuple1(c) != 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(L->GetComponent(c, k), 0.5 * 0.1998248957, 1e-7) << "channel " << k;
+      EXPECT_NEAR(H->GetComponent(c, k), M_PI * 0.1998248957, 1e-6) << "channel " << k;
+    }
+  }
+}
+
+TEST_F(Cli, FormFactorsCsvListsInputFacePairs) {
+  write("two.mtl", kTwoMtl);
+  const std::string obj = write("two.obj", kTwoSquares), out = path("F.csv"), stats = path("s.json");
+  const Run r = run("formfactors " + obj + " -o " + out + " --stats " + stats + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream in(out);
+  std::string line;
+  std::vector<std::string> lines;
+  while (std::getline(in, line)) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 2u) << "two nonzero entries: 0->1 and 1->0";
+  for (const auto& l : lines) {
+    int i, j;
+    double f;
+    ASSERT_EQ(std::sscanf(l.c_str(), "%d,%d,%lf", &i, &j, &f), 3) << l;
+    EXPECT_NE(i, j);
+    EXPECT_NEAR(f, 0.1998248957, 1e-9) << l;  // tolerance: the catalogue's 10 digits
+    const size_t digits = l.substr(l.rfind(',') + 1).find_first_of("eE");
+    EXPECT_GE(std::min(digits, l.size() - l.rfind(',') - 1), 11u) << "at least 10 significant digits: " << l;
+  }
+}
+
+TEST_F(Cli, InfoReportsPowerAndMaterials) {
+  write("two.mtl", kTwoMtl);
+  const std::string obj = write("two.obj", kTwoSquares);
+  const Run r = run("info " + obj);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("patches      2"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("3.14159"), std::string::npos) << "pi W from a 1 m^2 lamp of radiance 1\n" << r.output;
+  EXPECT_NE(r.output.find("lamp"), std::string::npos);
+  EXPECT_NE(r.output.find("bounding box"), std::string::npos);
+}
+
+// Bad input: message names the file and line (or face), non-zero exit, no output file left behind.
+TEST_F(Cli, BadInputNamesTheProblemAndWritesNothing) {
+  struct Case {
+    const char* obj;
+    const char* mtl;
+    const char* expect;
+  };
+  const Case cases[] = {
+      {"v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 7\n", "", "two.obj:4"},
+      {"v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n", "", "two.obj:2"},
+      {"mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl nope\nf 1 2 3\n", "newmtl a\nKd 0.5\n", "nope"},
+      {"mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl a\nf 1 2 3\n", "newmtl a\nKd 1.0\n", "reflectance"},
+      {"mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl a\nf 1 2 3\n", "newmtl a\nKd 0.5\nKe -1\n", "emission"},
+      {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "", "area"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.obj);
+    write("two.mtl", c.mtl);
+    const std::string obj = write("two.obj", c.obj), out = path("out.vtu");
+    const Run r = run("solve " + obj + " -o " + out);
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out));
+    for (const auto& f : files()) EXPECT_EQ(f.find(".tmp"), std::string::npos) << "temporary left behind: " << f;
+  }
+}
+
+TEST_F(Cli, UnwritableOutputFailsCleanly) {
+  const Run r = run("solve " + kExamples + "cornell_box.obj -o " + path("no/such/dir/out.vtu") + " --quiet");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("no/such/dir"), std::string::npos) << r.output;
+}
+
+TEST_F(Cli, VerifySpherePassesAtDefaults) {
+  const Run r = run("verify sphere");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("error"), std::string::npos) << r.output;
+}
+
+TEST_F(Cli, VerifyFurnacePassesAtDefaults) {
+  const Run r = run("verify furnace");
+  EXPECT_EQ(r.status, 0) << r.output;
+}
