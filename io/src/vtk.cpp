@@ -11,6 +11,7 @@
 #include <vtkCellType.h>
 #include <vtkCommand.h>
 #include <vtkDoubleArray.h>
+#include <vtkExecutive.h>
 #include <vtkFieldData.h>
 #include <vtkIntArray.h>
 #include <vtkNew.h>
@@ -79,8 +80,11 @@ struct ErrorCollector {
     auto* self = static_cast<ErrorCollector*>(client);
     if (call) {
       if (!self->messages.empty()) self->messages += "; ";
+      // VTK's text is "ERROR: In <source file>, line N\n<Class> (<address>): <message>\n\n": keep <message>.
       std::string m = static_cast<const char*>(call);
       while (!m.empty() && (m.back() == '\n' || m.back() == ' ')) m.pop_back();
+      if (const auto nl = m.rfind('\n'); nl != std::string::npos) m.erase(0, nl + 1);
+      if (const auto colon = m.find("): "); colon != std::string::npos) m.erase(0, colon + 3);
       self->messages += m;
     }
   }
@@ -175,6 +179,12 @@ void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorFie
   vtkNew<vtkXMLUnstructuredGridWriter> writer;
   writer->AddObserver(vtkCommand::ErrorEvent, observer);
   writer->SetInputData(grid);
+  // The pipeline executive reports the writer's failure once more; collect it too instead of printing.
+  ErrorCollector pipeline_errors;
+  vtkNew<vtkCallbackCommand> pipeline_observer;
+  pipeline_observer->SetCallback(&ErrorCollector::callback);
+  pipeline_observer->SetClientData(&pipeline_errors);
+  writer->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, pipeline_observer);
   writer->SetFileName(tmp.c_str());
   writer->SetDataModeToAppended();
   writer->EncodeAppendedDataOff();  // raw binary: smaller and faster than base64
@@ -184,8 +194,8 @@ void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorFie
   if (ok != 1 || writer->GetErrorCode() != 0 || !errors.messages.empty()) {
     std::error_code ignored;
     std::filesystem::remove(tmp, ignored);
-    throw InputError("cannot write VTK file '" + path + "'" +
-                     (errors.messages.empty() ? std::string() : ": " + errors.messages));
+    const std::string& why = errors.messages.empty() ? pipeline_errors.messages : errors.messages;
+    throw InputError("cannot write VTK file '" + path + "'" + (why.empty() ? std::string() : ": " + why));
   }
   commit_temporary(tmp, path);
 }
