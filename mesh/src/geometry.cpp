@@ -1,5 +1,6 @@
 #include "lambert/mesh/geometry.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -125,6 +126,14 @@ PatchGeometry PatchGeometry::from_polygons(const std::vector<std::vector<Vec3>>&
       c += at * (A + B + C) / 3.0;
       g.triangles.push_back({base + t[0], base + t[1], base + t[2]});
     }
+    // Ear clipping can "succeed" on a self-intersecting polygon; its triangles then do not tile
+    // the polygon, and their projected area differs from the Newell area (equal for simple ones,
+    // up to the flat corners dropped, each below 1e-14 L^2).
+    double extent2 = 0;
+    for (const Vec3& q : poly) extent2 = std::max(extent2, (q - poly[0]).squaredNorm());
+    if (std::abs(a - 0.5 * twice_area) > 1e-9 * 0.5 * twice_area + 1e-13 * double(poly.size()) * extent2)
+      throw InputError("polygon " + std::to_string(p) + " is not simple (self-intersecting): triangulated area " +
+                       std::to_string(a) + " != polygon area " + std::to_string(0.5 * twice_area));
     for (const Vec3& q : poly) g.points.push_back(q);
     g.offsets.push_back(static_cast<int>(g.points.size()));
     g.triangle_offsets.push_back(static_cast<int>(g.triangles.size()));

@@ -225,7 +225,8 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
     if (material_first[m] >= 0) check_material(soup, m, material_first[m]);
   for (int v = 0; v < nv; ++v)
     if (position_first[v] >= 0 && !soup.positions[v].allFinite())
-      fail(vertex_at(soup, v) + " of " + soup.file + " has a non-finite coordinate " + vec(soup.positions[v]) +
+      fail(SourceLoc{soup.file, v < static_cast<int>(soup.position_lines.size()) ? soup.position_lines[v] : 0}.str() +
+           ": vertex " + std::to_string(v) + " has a non-finite coordinate " + vec(soup.positions[v]) +
            " and is used by " + face_at(soup, position_first[v]));
 
   // 3. Geometry of each face: area, planarity, simplicity. Non-planar faces become triangles.
@@ -353,7 +354,14 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
     scene.geometry = PatchGeometry::from_polygons(polys);
   } catch (const InputError& e) {
     // The checks above should have caught it; still name the input face, not the patch.
-    throw InputError(soup.file + ": " + e.what());
+    for (int p = 0; p < np; ++p) {
+      try {
+        PatchGeometry::from_polygons({polys[p]});
+      } catch (const InputError& one) {
+        fail(face_at(soup, specs[p].face) + ": " + one.what());
+      }
+    }
+    fail(soup.file + ": " + e.what());
   }
 
   PolyMesh& mesh = scene.mesh;
@@ -396,7 +404,7 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
     report.warn("nonmanifold_faces_detached", detached,
                 std::to_string(detached) + " face" + (detached == 1 ? "" : "s") +
                     " could not be joined to the mesh (non-manifold edge or vertex, or orientation flipped "
-                    "against a neighbour) and got their own copies of their vertices, e.g. " +
+                    "against a neighbour) and got private copies of their vertices, e.g. " +
                     face_at(soup, ex_detached));
   if (static_cast<int>(mesh.n_faces()) != np || scene.geometry.size() != np)
     throw std::logic_error("build_scene: " + std::to_string(mesh.n_faces()) + " mesh faces, " +

@@ -47,7 +47,7 @@ struct Scene {
   int patches() const { return geometry.size(); }
   const RGB& reflectance(int p) const { return materials[material[p]].reflectance; }
   const RGB& emission(int p) const { return materials[material[p]].emission; }
-  bool grey() const;             // every material has equal R, G, B reflectance and emission
+  bool grey() const;             // every material used by a patch has equal R, G, B reflectance and emission
   RGB emitted_power() const;     // W per channel: pi * sum_p A_p Le_p (Lambertian, one side)
   ColorField reflectance_field() const;  // patches x 3
   ColorField emission_field() const;     // patches x 3, W m^-2 sr^-1
