@@ -1,1 +1,0 @@
-// placeholder: delete once the module has real sources
