@@ -24,6 +24,8 @@ class JsonMaterials {
       doc = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
     } catch (const json::parse_error& e) {
       syntax_error(text, e);
+    } catch (const json::exception& e) {  // e.g. a number too large for a double
+      error("", std::string("cannot parse: ") + e.what());
     }
     if (!doc.is_object()) error("", "the top level is " + kind(doc) + "; expected an object {\"materials\": ..., \"faces\": ...}");
     for (auto& [key, value] : doc.items())
