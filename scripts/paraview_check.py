@@ -12,6 +12,7 @@ import sys
 from paraview import servermanager
 from paraview.simple import (ColorBy, CreateView, Delete, GetColorTransferFunction, GetScalarBar, GetViews, LoadPalette, Render,
                              ResetCamera, SaveScreenshot, Show, XMLUnstructuredGridReader)
+from vtkmodules.vtkCommonCore import vtkIdList
 from vtkmodules.vtkIOImage import vtkPNGReader
 
 WIDTH, HEIGHT = 1024, 768
@@ -73,6 +74,30 @@ def picture_stats(png):
         return len(colours), covered / float(n)
 
 
+def colour_range(reader):
+    """(min, max) of the point radiance magnitude, the max over points of non-emitting cells only
+    (falls back to the full range when every cell emits or the arrays are not there)."""
+    grid = servermanager.Fetch(reader)
+    radiance = grid.GetPointData().GetArray("radiance")
+    full = radiance.GetRange(-1)
+    emission = grid.GetCellData().GetArray("emission")
+    if emission is None:
+        return full
+    high = None
+    ids = vtkIdList()
+    for c in range(grid.GetNumberOfCells()):
+        if max(emission.GetTuple3(c)) > 0:
+            continue
+        grid.GetCellPoints(c, ids)
+        for k in range(ids.GetNumberOfIds()):
+            r, g, b = radiance.GetTuple3(ids.GetId(k))
+            m = (r * r + g * g + b * b) ** 0.5
+            high = m if high is None or m > high else high
+    if high is None or not high > full[0]:
+        return full
+    return full[0], high
+
+
 def main(argv):
     if len(argv) != 3:
         fail("usage: pvbatch paraview_check.py IN.vtu OUT.png")
@@ -97,8 +122,20 @@ def main(argv):
     view.Background = list(BACKGROUND)
     display = Show(reader, view)
     ColorBy(display, ("POINTS", "radiance", "Magnitude"))
-    display.RescaleTransferFunctionToDataRange(True, False)
-    # Look along +z with +y up: the Cornell box's published camera direction (its open side faces -z).
+    # Unlit: the colour shows the radiance itself, not radiance times a headlight's shading.
+    display.Ambient = 1.0
+    display.Diffuse = 0.0
+    # Surfaces are one-sided: hide back faces, so the camera looks into a closed room through its
+    # near wall (whose front faces away) instead of at that wall's back.
+    display.BackfaceRepresentation = "Cull Backface"
+    # Emitters are far brighter than everything they light; a colour map up to their radiance would show
+    # every other surface in one dark colour. Map up to the brightest non-emitting surface; emitters saturate.
+    low, high = colour_range(reader)
+    lut = GetColorTransferFunction("radiance")
+    lut.RescaleTransferFunction(low, high)
+    lut.AutomaticRescaleRangeMode = "Never"
+    # Look along +z with +y up: the Cornell box's published camera direction (its open side faces -z);
+    # lambert's examples use y up.
     view.CameraPosition = [0.0, 0.0, -1.0]
     view.CameraFocalPoint = [0.0, 0.0, 0.0]
     view.CameraViewUp = [0.0, 1.0, 0.0]
@@ -118,10 +155,10 @@ def main(argv):
     SaveScreenshot(png, view, ImageResolution=[WIDTH, HEIGHT])
     final_distinct, final_coverage = picture_stats(png)
 
-    lut = GetColorTransferFunction("radiance").RGBPoints
+    lut_points = lut.RGBPoints
     print("paraview_check: %s: %d points, %d cells" % (vtu, info.GetNumberOfPoints(), info.GetNumberOfCells()))
     print("  point radiance |L| range %.6g .. %.6g W m^-2 sr^-1 (colour map %.6g .. %.6g)"
-          % (point_radiance.GetRange(-1)[0], point_radiance.GetRange(-1)[1], lut[0], lut[-4]))
+          % (point_radiance.GetRange(-1)[0], point_radiance.GetRange(-1)[1], lut_points[0], lut_points[-4]))
     print("  cell radiance  |L| range %.6g .. %.6g W m^-2 sr^-1" % cell_radiance.GetRange(-1))
     print("  %s: %dx%d; the model alone covers %.1f%% of the picture in %d distinct colours"
           % (png, WIDTH, HEIGHT, 100 * coverage, distinct))

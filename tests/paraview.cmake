@@ -48,10 +48,20 @@ endif()
 if(NOT EXISTS ${VTU})
   message(FATAL_ERROR "lambert solve exited 0 but wrote no ${VTU}")
 endif()
-execute_process(
-  COMMAND ${CMAKE_COMMAND} -E env PYTHONPATH=${PV_PYTHONPATH}
-          ${XVFB_RUN} -a ${PVBATCH} ${CHECK_SCRIPT} ${VTU} ${PNG}
-  RESULT_VARIABLE rc)
+# xvfb-run -a can lose a race for a display number to another xvfb-run started at the same moment
+# (pvbatch then aborts with "bad X server connection"): retry only that, a few times.
+foreach(attempt 1 2 3)
+  execute_process(
+    COMMAND ${CMAKE_COMMAND} -E env PYTHONPATH=${PV_PYTHONPATH}
+            ${XVFB_RUN} -a ${PVBATCH} ${CHECK_SCRIPT} ${VTU} ${PNG}
+    RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  message("${out}${err}")
+  if(rc EQUAL 0 OR NOT err MATCHES "bad X server connection|Xvfb failed to start|cannot open display")
+    break()
+  endif()
+  message("X server not usable (attempt ${attempt}), retrying")
+  execute_process(COMMAND ${CMAKE_COMMAND} -E sleep 2)
+endforeach()
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "ParaView check of ${VTU} failed (exit status ${rc})")
 endif()
