@@ -1,0 +1,73 @@
+#pragma once
+// Verification cases with exact answers (PHYSICS.md "Exact answers"): build the geometry, assemble form
+// factors, solve, compare per patch. Used by `lambert verify sphere|furnace` and the tests.
+#include <map>
+#include <string>
+
+#include "lambert/solver/solve.hpp"
+
+namespace lambert::solver {
+
+// Icosphere (20 * 4^K flat triangles, corners on the sphere of radius R, normals inward): a closed
+// convex polyhedron. Emission and reflectance are evaluated at each patch centroid c = (x, y, z):
+//   uniform: Le = E0, rho = rho0. Exact discrete answer E0 / (1 - rho0), since every row of F sums
+//            to 1; pass tolerance 1e-6 (form-factor and solver error only).
+//   cap:     Le = E0 where z > R/2, else 0; rho = rho0.
+//   linear:  Le = E0 (1 + z/R) / 2; rho = rho0 (0.75 + 0.25 x/R).
+// cap and linear are compared with the continuum answer of a true sphere, whose kernel is the constant
+// 1/(4 pi R^2): L_i = Le_i + rho_i Ebar / (1 - rhobar), Ebar and rhobar the area means over the
+// polyhedron. The polyhedron only converges to it, as O(h^2) in the mean edge length h (measured,
+// see docs/benchmarks_solver.md); pass tolerance 0.5 (h/R)^2 for cap and linear, which the measured
+// errors meet with a factor >= 3 to spare.
+struct SphereCase {
+  int subdivisions = 3;       // K in [0, 6]: 1280 patches by default
+  double radius = 1;          // m
+  double rho = 0.9;           // rho0 in [0, 1)
+  std::string emission = "uniform";  // "uniform" | "cap" | "linear"
+  double E0 = 1;              // W m^-2 sr^-1
+  Method method = Method::Auto;
+  double ff_tolerance = 1e-10;     // formfactor::Options::tolerance
+  double solve_tolerance = 1e-10;  // Options::tolerance
+  double tolerance = 0;       // pass threshold on the max relative error; 0 = the case's default above
+};
+
+// White furnace: closed unit room [0,1]^3 (divisions^2 quads per face, inward) with the floating block
+// [0.35, 0.65]^3 (block_divisions^2 quads per face, outward) that occludes. Uniform Le = E0, rho: exact
+// answer E0 / (1 - rho) everywhere. Row-sum errors delta (from ray-estimated visibility) are amplified:
+// the error is at most rho max|delta| / (1 - rho max(1 + delta)), printed as "bound". Pass tolerance
+// 1e-4 rho / (1 - rho): the solution must be as good as row sums exact to 1e-4.
+struct FurnaceCase {
+  int divisions = 6;          // >= 1: 216 room quads
+  int block_divisions = 3;    // >= 1: 54 block quads
+  double rho = 0.9;
+  double E0 = 1;              // W m^-2 sr^-1
+  Method method = Method::Auto;
+  double ff_tolerance = 1e-8;      // formfactor::Options::tolerance
+  int rays_per_pair = 64;          // formfactor::Options::rays_per_pair
+  double solve_tolerance = 1e-10;  // Options::tolerance
+  double tolerance = 0;       // pass threshold on the max relative error; 0 = the default above
+};
+
+struct VerifyReport {
+  std::string name;                        // e.g. "sphere K=3 uniform rho=0.9"
+  int patches = 0;
+  std::map<std::string, double> seconds;  // "mesh", "form_factors", "solve", "total"
+  Method method = Method::Auto;            // the method used
+  int iterations = 0;                      // max over channels
+  int matvecs = 0;                         // max over channels
+  double residual = 0;                     // max relative residual over channels
+  bool converged = false;
+  double row_sum_min = 0, row_sum_max = 0;
+  double error_bound = 0;   // a-posteriori bound from row sums (uniform sphere, furnace); 0 otherwise
+  double max_rel_error = 0, mean_rel_error = 0;  // |L_i - exact_i| / exact_i over patches
+  int worst_patch = -1;
+  double tolerance = 0;     // the pass threshold applied to max_rel_error
+  bool passed = false;      // converged and max_rel_error <= tolerance
+  std::string table;        // ready-to-print text
+};
+
+// Throw InputError for out-of-range parameters (names the field and the allowed range).
+VerifyReport verify_sphere(const SphereCase& c);
+VerifyReport verify_furnace(const FurnaceCase& c);
+
+}  // namespace lambert::solver

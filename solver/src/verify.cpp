@@ -1,0 +1,214 @@
+#include "lambert/solver/verify.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "lambert/formfactor/assemble.hpp"
+#include "lambert/mesh/geometry.hpp"
+#include "lambert/mesh/shapes.hpp"
+
+namespace lambert::solver {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw InputError("verify: " + what);
+}
+
+// Shared tail of both cases: assemble, solve, compare with `exact`, fill the report.
+struct Run {
+  mesh::PatchGeometry geometry;
+  Solution solution;
+  std::vector<double> row_sums;
+};
+
+Run assemble_and_solve(const mesh::shapes::Polygons& polygons, const formfactor::Options& ff,
+                       const std::function<void(const mesh::PatchGeometry&, ColorField&, ColorField&)>& fields,
+                       const Options& so, VerifyReport& r) {
+  Run run;
+  auto t = Clock::now();
+  run.geometry = mesh::PatchGeometry::from_polygons(polygons);
+  r.seconds["mesh"] = since(t);
+  r.patches = run.geometry.size();
+
+  t = Clock::now();
+  auto F = std::make_shared<formfactor::DenseMatrixOperator>(formfactor::assemble(run.geometry, ff));
+  r.seconds["form_factors"] = since(t);
+
+  t = Clock::now();
+  const Solver solver(F, run.geometry.area);
+  ColorField rho, Le;
+  fields(run.geometry, rho, Le);
+  run.solution = solver.solve(rho, Le, so);
+  r.seconds["solve"] = since(t);
+  run.row_sums = solver.row_sums();
+  const auto [lo, hi] = std::minmax_element(run.row_sums.begin(), run.row_sums.end());
+  r.row_sum_min = *lo;
+  r.row_sum_max = *hi;
+
+  const Solution& s = run.solution;
+  r.method = s.method;
+  r.converged = s.converged;
+  for (const auto& c : s.channels) {
+    r.iterations = std::max(r.iterations, c.iterations);
+    r.matvecs = std::max(r.matvecs, c.matvecs);
+    r.residual = std::max(r.residual, c.residual);
+  }
+  return run;
+}
+
+void compare(const Run& run, const Eigen::VectorXd& exact, VerifyReport& r) {
+  const auto L = run.solution.radiance.col(0);
+  double sum = 0;
+  for (Eigen::Index i = 0; i < exact.size(); ++i) {
+    const double diff = std::abs(L[i] - exact[i]);
+    const double e = exact[i] > 0 ? diff / exact[i] : (diff == 0 ? 0.0 : INFINITY);
+    sum += e;
+    if (r.worst_patch < 0 || e > r.max_rel_error) {
+      r.max_rel_error = e;
+      r.worst_patch = int(i);
+    }
+  }
+  r.mean_rel_error = exact.size() ? sum / double(exact.size()) : 0;
+  r.passed = r.converged && r.max_rel_error <= r.tolerance;
+}
+
+// rho max|1 - s| / (1 - rho max s): bound on the relative error of a uniform closed case whose row sums
+// s are not exactly 1 (from (I - rho F) e = rho E0 (s - 1) / (1 - rho) and ||(I - rho F)^-1||_inf).
+double row_sum_bound(double rho, double smin, double smax) {
+  const double dev = std::max(std::abs(1 - smin), std::abs(smax - 1));
+  const double denom = 1 - rho * smax;
+  return denom > 0 ? rho * dev / denom : INFINITY;
+}
+
+std::string table(const VerifyReport& r, const std::string& exact_line, const Solution& s) {
+  std::string t = fmt::format("lambert verify {}\n", r.name);
+  t += fmt::format("  patches      {}\n", r.patches);
+  t += fmt::format("  exact        {}\n", exact_line);
+  t += fmt::format("  row sums     [1 {:+.2e}, 1 {:+.2e}]", r.row_sum_min - 1, r.row_sum_max - 1);
+  if (r.error_bound > 0) t += fmt::format(", error bound from row sums {:.2e}", r.error_bound);
+  t += "\n";
+  t += fmt::format("  solve        {}, {} iterations, {} products F x, residual {:.2e}, {}\n", to_string(r.method),
+                   r.iterations, r.matvecs, r.residual, s.channels.empty() ? "" : s.channels[0].stop);
+  t += fmt::format("  energy       emitted {:.6g} W, absorbed {:.6g} W, escaped {:.3g} W, balance residual {:.1e}\n",
+                   s.emitted[0], s.absorbed[0], s.escaped[0], s.energy_residual);
+  t += fmt::format("  time         mesh {:.3f} s, form factors {:.3f} s, solve {:.3f} s, total {:.3f} s\n",
+                   r.seconds.at("mesh"), r.seconds.at("form_factors"), r.seconds.at("solve"), r.seconds.at("total"));
+  t += fmt::format("  rel. error   max {:.2e} (patch {}), mean {:.2e}\n", r.max_rel_error, r.worst_patch,
+                   r.mean_rel_error);
+  t += fmt::format("  tolerance    {:.2e}: {}\n", r.tolerance,
+                   r.passed ? "PASS" : (r.converged ? "FAIL (error above tolerance)" : "FAIL (solve did not converge)"));
+  return t;
+}
+
+}  // namespace
+
+VerifyReport verify_sphere(const SphereCase& c) {
+  require(c.subdivisions >= 0 && c.subdivisions <= 7, "subdivisions must be in [0, 7], got " + std::to_string(c.subdivisions));
+  require(c.radius > 0 && std::isfinite(c.radius), "radius must be positive");
+  require(c.rho >= 0 && c.rho < 1, "rho must be in [0, 1), got " + std::to_string(c.rho));
+  require(c.E0 > 0 && std::isfinite(c.E0), "E0 must be positive");
+  require(c.emission == "uniform" || c.emission == "cap" || c.emission == "linear",
+          "emission must be uniform, cap or linear, got '" + c.emission + "'");
+  require(c.tolerance >= 0, "tolerance must be >= 0");
+  const auto start = Clock::now();
+
+  VerifyReport r;
+  r.name = fmt::format("sphere K={} {} rho={}", c.subdivisions, c.emission, c.rho);
+  const double R = c.radius;
+  auto fields = [&](const mesh::PatchGeometry& g, ColorField& rho, ColorField& Le) {
+    const int n = g.size();
+    rho.resize(n, 3);
+    Le.resize(n, 3);
+    for (int i = 0; i < n; ++i) {
+      const Vec3& x = g.centroid[i];
+      double le = c.E0, rh = c.rho;
+      if (c.emission == "cap") le = x.z() > 0.5 * R ? c.E0 : 0.0;
+      if (c.emission == "linear") {
+        le = c.E0 * (1 + x.z() / R) / 2;
+        rh = c.rho * (0.75 + 0.25 * x.x() / R);
+      }
+      rho.row(i).setConstant(rh);
+      Le.row(i).setConstant(le);
+    }
+  };
+  formfactor::Options ff;
+  ff.tolerance = c.ff_tolerance;
+  Options so;
+  so.method = c.method;
+  so.tolerance = c.solve_tolerance;
+  Run run = assemble_and_solve(mesh::shapes::icosphere(c.subdivisions, R, true), ff, fields, so, r);
+
+  const mesh::PatchGeometry& g = run.geometry;
+  const int n = g.size();
+  ColorField rho, Le;
+  fields(g, rho, Le);
+  Eigen::VectorXd exact(n);
+  std::string exact_line;
+  if (c.emission == "uniform") {
+    exact.setConstant(c.E0 / (1 - c.rho));
+    exact_line = fmt::format("L = E0/(1-rho) = {:.10g} (closed polyhedron: exact discrete answer)", exact[0]);
+    r.error_bound = row_sum_bound(c.rho, r.row_sum_min, r.row_sum_max);
+    r.tolerance = c.tolerance > 0 ? c.tolerance : 1e-6;
+  } else {
+    double area = 0, Ebar = 0, rhobar = 0;
+    for (int i = 0; i < n; ++i) {
+      area += g.area[i];
+      Ebar += g.area[i] * Le(i, 0);
+      rhobar += g.area[i] * rho(i, 0);
+    }
+    Ebar /= area;
+    rhobar /= area;
+    for (int i = 0; i < n; ++i) exact[i] = Le(i, 0) + rho(i, 0) * Ebar / (1 - rhobar);
+    // Mean edge length of the icosphere relative to R: the icosahedron's edge is 1.0515 R, halved per level.
+    const double h = 1.0514622242382672 / std::pow(2.0, c.subdivisions);
+    exact_line = fmt::format("L = Le + rho Ebar/(1-rhobar), Ebar = {:.6g}, rhobar = {:.6g} (continuum limit, O(h^2))",
+                             Ebar, rhobar);
+    r.tolerance = c.tolerance > 0 ? c.tolerance : 0.5 * h * h;
+  }
+  compare(run, exact, r);
+  r.seconds["total"] = since(start);
+  r.table = table(r, exact_line, run.solution);
+  return r;
+}
+
+VerifyReport verify_furnace(const FurnaceCase& c) {
+  require(c.divisions >= 1 && c.divisions <= 64, "divisions must be in [1, 64], got " + std::to_string(c.divisions));
+  require(c.block_divisions >= 1 && c.block_divisions <= 64,
+          "block divisions must be in [1, 64], got " + std::to_string(c.block_divisions));
+  require(c.rho >= 0 && c.rho < 1, "rho must be in [0, 1), got " + std::to_string(c.rho));
+  require(c.E0 > 0 && std::isfinite(c.E0), "E0 must be positive");
+  require(c.rays_per_pair >= 1, "rays per pair must be >= 1");
+  require(c.tolerance >= 0, "tolerance must be >= 0");
+  const auto start = Clock::now();
+
+  VerifyReport r;
+  r.name = fmt::format("furnace n={} block m={} rho={}", c.divisions, c.block_divisions, c.rho);
+  auto fields = [&](const mesh::PatchGeometry& g, ColorField& rho, ColorField& Le) {
+    rho = ColorField::Constant(g.size(), 3, c.rho);
+    Le = ColorField::Constant(g.size(), 3, c.E0);
+  };
+  formfactor::Options ff;
+  ff.tolerance = c.ff_tolerance;
+  ff.rays_per_pair = c.rays_per_pair;
+  Options so;
+  so.method = c.method;
+  so.tolerance = c.solve_tolerance;
+  Run run = assemble_and_solve(mesh::shapes::room_with_block(c.divisions, c.block_divisions), ff, fields, so, r);
+  const Eigen::VectorXd exact = Eigen::VectorXd::Constant(run.geometry.size(), c.E0 / (1 - c.rho));
+  r.error_bound = row_sum_bound(c.rho, r.row_sum_min, r.row_sum_max);
+  r.tolerance = c.tolerance > 0 ? c.tolerance : std::max(1e-4 * c.rho / (1 - c.rho), 1e-9);
+  compare(run, exact, r);
+  r.seconds["total"] = since(start);
+  r.table = table(r, fmt::format("L = E0/(1-rho) = {:.10g} everywhere (closed enclosure)", exact[0]), run.solution);
+  return r;
+}
+
+}  // namespace lambert::solver
