@@ -381,6 +381,17 @@ TEST(Readers, ReadSoupDispatchesOnExtensionCaseInsensitively) {
   expect_error([&] { io::read_soup(stl); }, {"x.stl", "unknown scene file extension", ".obj", ".ply", ".off"});
 }
 
+TEST(Readers, JsonOverridesColourMaterialByName) {
+  TempDir dir;
+  PolygonSoup s = io::read_off(dir.write("c.off", "\xEF\xBB\xBFOFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2 255 0 0\n3 0 2 1\n"));
+  io::apply_materials_json(s, dir.write("c.json", R"({"materials": {"color_255_0_0": {"emission": 5}}})"));
+  const Material& m = s.materials.at(s.faces[0].material);
+  EXPECT_EQ(m.name, "color_255_0_0");
+  EXPECT_TRUE((m.reflectance == RGB(1, 0, 0)).all()) << m.reflectance.transpose();
+  EXPECT_TRUE((m.emission == RGB::Constant(5)).all()) << m.emission.transpose();
+  EXPECT_EQ(s.faces[1].material, 0);
+}
+
 // ---------------------------------------------------------------- errors: OBJ / MTL
 
 const std::string kTri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";

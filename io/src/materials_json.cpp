@@ -154,8 +154,8 @@ class JsonMaterials {
       if (a > b) error(where + ".range", "range [" + std::to_string(a) + ", " + std::to_string(b) + "] is reversed; expected first <= last");
       if (a < 0 || b >= nf)
         error(where + ".range", "range [" + std::to_string(a) + ", " + std::to_string(b) +
-                                    "] is out of bounds: the scene has " + std::to_string(nf) + " faces (indices 0 .. " +
-                                    std::to_string(nf - 1) + ")");
+                                    "] is out of bounds: the scene has " + std::to_string(nf) + " faces" +
+                                    (nf > 0 ? " (indices 0 .. " + std::to_string(nf - 1) + ")" : ""));
       bool inline_values = entry.contains("reflectance") || entry.contains("emission");
       int m;
       if (entry.contains("material")) {

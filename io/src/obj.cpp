@@ -218,7 +218,7 @@ class ObjReader {
         if (soup_.materials.size() > 11) known += ", ...";
         fail(path_, usemtl_[i].line,
              "unknown material " + quote(usemtl_[i].name) + " in usemtl: not defined in any loaded MTL file" +
-                 (loaded_mtl_.empty() ? " (no mtllib statement before the end of the file)"
+                 (loaded_mtl_.empty() ? " (the file has no mtllib statement)"
                                       : known.empty() ? "" : " (defined: " + known + ")"));
       }
       resolved[i] = it->second;

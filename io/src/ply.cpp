@@ -99,7 +99,7 @@ class Source {
   }
 
   [[noreturn]] void error(const std::string& what) const {
-    std::string where = "element '" + elem_->name + "' " + std::to_string(index_);
+    std::string where = "element '" + elem_->name + "' " + std::to_string(index_) + " (of " + std::to_string(elem_->count) + ")";
     if (format_ == Format::ascii) fail(file_, line_, where + ": " + what);
     throw InputError(file_ + ": " + where + ": " + what);
   }
@@ -239,7 +239,7 @@ class PlyReader {
         else if (t[1] == "binary_little_endian") format_ = Format::binary_le;
         else if (t[1] == "binary_big_endian") format_ = Format::binary_be;
         else fail(path_, line, "unknown PLY format " + quote(t[1]) + "; expected ascii, binary_little_endian or binary_big_endian");
-        if (t[2] != "1.0") fail(path_, line, "unsupported PLY version " + quote(t[2]) + "; expected 1.0");
+        if (t[2] != "1.0" && t[2] != "1") fail(path_, line, "unsupported PLY version " + quote(t[2]) + "; expected 1.0");
         have_format = true;
       } else if (t[0] == "element") {
         if (t.size() != 3) fail(path_, line, "malformed element line; expected 'element NAME COUNT'");

@@ -21,7 +21,9 @@ std::string read_file(const std::string& path);
 class LineReader {
  public:
   LineReader(std::string_view text, bool continuation, bool comments)
-      : text_(text), continuation_(continuation), comments_(comments) {}
+      : text_(text), continuation_(continuation), comments_(comments) {
+    if (text_.substr(0, 3) == "\xEF\xBB\xBF") pos_ = 3;  // UTF-8 byte order mark
+  }
   bool next(std::string_view& out, int& line);
   int last_line() const { return next_line_ - 1; }  // last physical line read so far
   std::size_t offset() const { return pos_; }       // byte offset after the last line read
