@@ -263,6 +263,7 @@ int run_solve(const CommonOptions& o) {
     sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field(), so);
   }
   timer.stop();
+  for (const auto& w : sol.warnings) say(o, "lambert: warning: " + w);
   if (!sol.converged) {
     std::string why;
     for (size_t c = 0; c < sol.channels.size(); ++c)
@@ -293,6 +294,7 @@ int run_solve(const CommonOptions& o) {
     j["iterations"] = max_iterations;
     j["residual"] = max_residual;
     j["channels"] = channels;
+    j["solver_warnings"] = sol.warnings;
     j["energy"] = {{"emitted_W", rgb_json(sol.emitted)},
                    {"absorbed_W", rgb_json(sol.absorbed)},
                    {"escaped_W", rgb_json(sol.escaped)},

@@ -57,7 +57,7 @@ int main(int argc, char** argv) {
   add_common(solve, true);
   solve->add_option("-o,--output", common.output, "Output file (.vtu)")->required();
   add_formfactor(solve, "--ff-tolerance");
-  solve->add_option("--method", common.method, "Solver: auto, jacobi, gauss-seidel, bicgstab")->capture_default_str();
+  solve->add_option("--method", common.method, "Solver: auto, jacobi, gauss-seidel, bicgstab, gmres")->capture_default_str();
   solve->add_option("--tolerance", common.solve_tolerance, "Relative residual at which the solve stops")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -83,15 +83,15 @@ int main(int argc, char** argv) {
   verify->require_subcommand(1);
   app::VerifyOptions vo;
   auto* sphere = verify->add_subcommand("sphere", "Closed icosphere with inward normals: exact answer E0/(1-rho), or the continuum formula");
-  sphere->add_option("--subdivisions", vo.subdivisions, "Icosphere subdivision level K (20*4^K triangles)")->check(CLI::Range(0, 7));
+  sphere->add_option("--subdivisions", vo.subdivisions, "Icosphere subdivision level K (20*4^K triangles)")->check(CLI::Range(0, 6));
   sphere->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
   sphere->add_option("--emission", vo.emission, "uniform | cap | linear")->check(CLI::IsMember({"uniform", "cap", "linear"}));
-  sphere->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab");
+  sphere->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres");
   sphere->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
   auto* furnace = verify->add_subcommand("furnace", "Closed room with an occluding block, uniform E0 and rho: exact answer E0/(1-rho)");
   furnace->add_option("--divisions", vo.divisions, "Quads per room face edge")->check(CLI::Range(1, 64));
   furnace->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
-  furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab");
+  furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres");
   furnace->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
 
   try {
