@@ -1,0 +1,68 @@
+#pragma once
+// Dense assembly of all patch-to-patch form factors F_ij (dimensionless), with visibility.
+//
+// Accuracy. `tolerance` bounds the absolute error of every unoccluded F_ij (and of F_ji, which reciprocity
+// gives from it: the pair is integrated from its smaller patch, so F_ji's error is at most F_ij's). Far pairs
+// take the cheapest outer rule whose a-priori error bound (kernel derivatives ~ size/distance, constants
+// calibrated x4 above the worst case seen on random polygon pairs) is <= tolerance; near pairs (shared edges
+// or corners, closer than ~3 sizes) use an adaptive double contour integral stopped when its error estimate
+// (Gauss-Kronrod, conservative) is <= tolerance. Default 1e-8: catalogue values are met to ~1e-10.
+// Visibility is NOT covered by `tolerance`: the visible fraction is a ray estimate (rays_per_pair) and only
+// pairs whose segments may actually be blocked are ray-tested.
+#include <cstddef>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lambert/formfactor/dense.hpp"
+#include "lambert/formfactor/visibility.hpp"
+#include "lambert/mesh/geometry.hpp"
+
+namespace lambert::formfactor {
+
+struct Options {
+  double tolerance = 1e-8;  // absolute error bound on each unoccluded F_ij (see above); > 0
+  bool visibility = true;   // false: every pair is treated as unoccluded
+  int rays_per_pair = 16;   // rays for a pair that may be occluded: sqrt(R) source points x R/sqrt(R) target points
+  int threads = 0;          // 0 = all cores (or the caller's tbb::global_control); otherwise a task_arena of this size
+  std::function<void(double fraction_done)> progress;  // <= ~10 calls/s, serialised, from any thread
+  std::size_t max_bytes = 0;  // limit on the dense matrix; 0 = 80% of physical RAM
+  // Occlusion caster; null = Embree over the potential occluders. Tests inject the brute-force one.
+  std::shared_ptr<const Visibility> caster;
+  bool cull_occlusion = true;  // false: ray-test every visible pair, even those shaft culling proves clear (tests)
+};
+
+struct Stats {
+  int patches = 0;
+  long long pairs_total = 0;               // unordered pairs i < j
+  long long pairs_orientation_culled = 0;  // one is behind the other's plane (or coplanar): F = 0, no work
+  long long pairs_shaft_culled = 0;        // potentially visible but proven unoccluded by shaft culling: no rays
+  long long pairs_ray_tested = 0;          // visible fraction estimated with rays
+  std::map<std::string, long long> pairs_by_method;  // unoccluded-integral method per computed pair
+  long long rays_cast = 0;
+  bool scene_can_occlude = false;  // false: no patch can block another (convex enclosure), no rays at all
+  int occluders = 0;               // patches that can block something (the ray-tracing scene)
+  double row_sum_min = 0, row_sum_max = 0, row_sum_mean = 0;
+  double reciprocity_residual = 0;  // max |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) over stored entries
+  long long entries_outside_unit = 0;  // F_ij < 0 or > 1 (never clamped); must be 0
+  long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance
+  std::map<std::string, double> seconds;  // "setup", "bvh", "form_factors", "stats"
+  std::size_t bytes = 0;                  // dense matrix size
+};
+
+// N x N matrix, F(i, j) from patch i to patch j, F(i, i) = 0. Throws lambert::InputError (with the needed
+// and allowed bytes) before allocating if N^2 * 8 bytes exceeds max_bytes, or if tolerance <= 0.
+DenseMatrixOperator assemble(const mesh::PatchGeometry& geometry, const Options& options = {}, Stats* stats = nullptr);
+
+// Aggregation to input faces when a face was split into several patches: F_IJ = sum_{i in I} A_i sum_{j in J}
+// F_ij / sum_{i in I} A_i. face_id[p] in [0, input_faces) for each patch p. Nonzero entries, sorted by (i, j).
+struct FaceEntry {
+  int i, j;
+  double F;
+};
+std::vector<FaceEntry> aggregate_to_faces(const DenseMatrixOperator& F, const mesh::PatchGeometry& g,
+                                          const std::vector<int>& face_id, int input_faces);
+
+}  // namespace lambert::formfactor

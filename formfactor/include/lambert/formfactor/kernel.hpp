@@ -1,0 +1,30 @@
+#pragma once
+// Unoccluded form factors between planar polygons. Lengths in metres; form factors are dimensionless.
+// Conventions (see /shared/PHYSICS.md): a polygon's front side is given by the right-hand rule on its corner
+// order; only the front emits and receives (one-sided), so a polygon seen from behind contributes 0.
+#include <span>
+#include <string>
+
+#include "lambert/mesh/types.hpp"
+
+namespace lambert::formfactor {
+
+// F(dA_x -> P) = (1/pi) * integral over P of cos(theta_x) cos(theta_y) / r^2 dA_y: the point-to-polygon form
+// factor from a differential area at x with unit normal n (its front side) to the planar polygon P (>= 3
+// corners, simple, convex or not), by Lambert's contour formula after clipping P against x's tangent plane.
+// 0 when x is behind or in P's plane, or P is entirely behind x. Never NaN or Inf for finite input.
+double point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> polygon);
+
+// Patch-to-patch F_ij = (1/A_i) * double integral of the kernel over P_i x P_j, unoccluded, one-sided.
+// Computed with the same method selection as assemble(): the smaller polygon is integrated by an outer rule
+// chosen a priori from size/distance, near pairs (shared edges or corners, or closer than their size) by an
+// adaptive double contour integral, each until the estimated absolute error on F_ij is <= tolerance.
+struct PairResult {
+  double F = 0;           // F_ij (from i to j)
+  double F_reverse = 0;   // F_ji, from reciprocity A_i F_ij = A_j F_ji
+  std::string method;     // "orientation_culled", "centroid_hessian", "gauss4", "gauss9", "gauss16", "contour", ...
+  double error_estimate = 0;  // estimated absolute error of F (a priori bound or adaptive estimate)
+};
+PairResult polygon_to_polygon(std::span<const Vec3> Pi, std::span<const Vec3> Pj, double tolerance = 1e-8);
+
+}  // namespace lambert::formfactor

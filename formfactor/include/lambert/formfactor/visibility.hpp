@@ -1,0 +1,37 @@
+#pragma once
+// Occlusion queries between patches. assemble() multiplies each unoccluded F_ij by a visible fraction it
+// estimates with these queries; tests swap the Embree caster for the brute-force one.
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "lambert/mesh/geometry.hpp"
+
+namespace lambert::formfactor {
+
+class Visibility {
+ public:
+  virtual ~Visibility() = default;
+  // For each k: hidden[k] = 1 if the open segment from[k] -> to[k] meets a patch other than ignore_a and
+  // ignore_b (the source and target patches, so no self-hit epsilon is needed), else 0.
+  // Precondition: from, to and hidden have the same size.
+  virtual void occluded(std::span<const Vec3> from, std::span<const Vec3> to, int ignore_a, int ignore_b,
+                        std::span<std::uint8_t> hidden) const = 0;
+  bool occluded(const Vec3& from, const Vec3& to, int ignore_a, int ignore_b) const;
+};
+
+// Embree 3 BVH over the triangles of the given patches (all patches if `occluders` is empty). Only patches
+// that can block anything need to be in it (see assemble.hpp). Single precision inside Embree.
+std::unique_ptr<Visibility> make_embree_visibility(const mesh::PatchGeometry& geometry,
+                                                   const std::vector<int>& occluders = {});
+
+// Tests every triangle of every patch, in double precision (Moller-Trumbore). O(triangles) per query.
+std::unique_ptr<Visibility> make_brute_force_visibility(const mesh::PatchGeometry& geometry);
+
+// Patches that can occlude anything: those with some corner of the scene strictly behind their plane (a
+// segment between two scene points can only cross the plane of such a patch). Empty for a convex enclosure
+// (closed box or sphere with inward normals). Uses the convex hull of all corners (CGAL).
+std::vector<int> potential_occluders(const mesh::PatchGeometry& geometry);
+
+}  // namespace lambert::formfactor

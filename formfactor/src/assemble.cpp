@@ -1,0 +1,489 @@
+// Dense assembly: tiles of (source block, target block) pairs, each unordered pair computed once.
+#include "lambert/formfactor/assemble.hpp"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <new>
+#include <string>
+
+#include "batch.hpp"
+#include "internal.hpp"
+#include "lambert/formfactor/kernel.hpp"
+#include "shaft.hpp"
+
+namespace lambert::formfactor {
+namespace {
+
+using detail::kMethodCount;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+constexpr int kBlock = 64;  // tile edge: 64 x 64 pairs, both matrix blocks stay in L2 while written
+
+// Structure-of-arrays copy of the patch data for the SIMD kernels, padded for 8-wide loads.
+struct Prepared {
+  detail::PatchData P;
+  std::vector<std::vector<double>> store;
+  std::array<int, 5> tier_base{};  // first index of tier m in the concatenated rule-point arrays
+  std::vector<detail::Box> box;
+  detail::SoA soa{};
+
+  double* column(size_t n) {
+    store.emplace_back(n + detail::kBatchPad, 0.0);
+    return store.back().data();
+  }
+  explicit Prepared(const mesh::PatchGeometry& g) : P(detail::prepare(g)) {
+    const int n = P.n;
+    store.reserve(40);
+    auto fill = [&](auto f) {
+      double* c = column(n);
+      for (int p = 0; p < n; ++p) c[p] = f(p);
+      return c;
+    };
+    soa.cx = fill([&](int p) { return P.c[p].x(); });
+    soa.cy = fill([&](int p) { return P.c[p].y(); });
+    soa.cz = fill([&](int p) { return P.c[p].z(); });
+    soa.nx = fill([&](int p) { return P.nrm[p].x(); });
+    soa.ny = fill([&](int p) { return P.nrm[p].y(); });
+    soa.nz = fill([&](int p) { return P.nrm[p].z(); });
+    soa.off = fill([&](int p) { return P.offset[p]; });
+    soa.area = fill([&](int p) { return P.area[p]; });
+    soa.rho = fill([&](int p) { return P.rho[p]; });
+    for (int c = 0; c < 4; ++c) {
+      auto corner = [&, c](int p, int axis) {
+        const auto poly = g.polygon(p);
+        return poly[std::min<size_t>(c, poly.size() - 1)][axis];
+      };
+      soa.qx[c] = fill([&](int p) { return corner(p, 0); });
+      soa.qy[c] = fill([&](int p) { return corner(p, 1); });
+      soa.qz[c] = fill([&](int p) { return corner(p, 2); });
+    }
+    for (int k = 0; k < 6; ++k) soa.M[k] = fill([&](int p) { return P.M[p][k]; });
+    soa.fast = fill([&](int p) { return P.kind[p] <= 2 ? 1.0 : 0.0; });
+    soa.sym = fill([&](int p) { return P.kind[p] == 1 ? 1.0 : 0.0; });
+    size_t total = 0;
+    for (int m = 2; m <= 4; ++m) {
+      tier_base[m] = int(total);
+      total += P.rule_pts[m].size();
+    }
+    double* px = column(total);
+    double* py = column(total);
+    double* pz = column(total);
+    double* pw = column(total);
+    for (int m = 2; m <= 4; ++m)
+      for (size_t k = 0; k < P.rule_pts[m].size(); ++k) {
+        const auto& X = P.rule_pts[m][k];
+        px[tier_base[m] + k] = X[0];
+        py[tier_base[m] + k] = X[1];
+        pz[tier_base[m] + k] = X[2];
+        pw[tier_base[m] + k] = X[3];
+      }
+    soa.px = px;
+    soa.py = py;
+    soa.pz = pz;
+    soa.pw = pw;
+    soa.eps = P.scene_eps;
+    box.resize(n);
+    for (int p = 0; p < n; ++p)
+      for (const Vec3& v : g.polygon(p)) box[p].add(v);
+  }
+};
+
+std::uint64_t mix(std::uint64_t x) {  // splitmix64
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+double jitter(std::uint64_t seed, int k) {  // in [0.05, 0.95]: samples stay inside their stratum
+  return 0.05 + 0.9 * double(mix(seed + std::uint64_t(k)) >> 11) * 0x1.0p-53;
+}
+
+// n stratified points on patch p (grid of strata in the patch's own parameterisation, jittered inside each
+// stratum, so no point lies on the patch boundary).
+void sample_patch(const mesh::PatchGeometry& g, const detail::PatchData& P, int p, int k1, int k2,
+                  std::uint64_t seed, std::vector<Vec3>& out) {
+  out.clear();
+  const auto poly = g.polygon(p);
+  const int n = k1 * k2;
+  if (P.kind[p] == 1 || P.kind[p] == 2) {
+    for (int a = 0; a < k1; ++a)
+      for (int b = 0; b < k2; ++b) {
+        const int k = a * k2 + b;
+        const double s = (a + jitter(seed, 2 * k)) / k1, t = (b + jitter(seed, 2 * k + 1)) / k2;
+        out.push_back((1 - s) * (1 - t) * poly[0] + s * (1 - t) * poly[1] + s * t * poly[2] + (1 - s) * t * poly[3]);
+      }
+    return;
+  }
+  // Triangles of the patch by cumulative area; within a triangle, the square-to-triangle map.
+  const int t0 = g.triangle_offsets[p], t1 = g.triangle_offsets[p + 1];
+  for (int a = 0; a < k1; ++a)
+    for (int b = 0; b < k2; ++b) {
+      const int k = a * k2 + b;
+      double u = (k + jitter(seed, 2 * k)) / n * P.area[p];
+      int t = t0;
+      double at = 0;
+      for (; t < t1; ++t) {
+        const auto& T = g.triangles[t];
+        at = 0.5 * (g.points[T[1]] - g.points[T[0]]).cross(g.points[T[2]] - g.points[T[0]]).norm();
+        if (u <= at || t == t1 - 1) break;
+        u -= at;
+      }
+      const double su = std::sqrt(std::clamp(u / at, 0.0, 1.0)), v = jitter(seed, 2 * k + 1);
+      const auto& T = g.triangles[t];
+      out.push_back((1 - su) * g.points[T[0]] + su * (1 - v) * g.points[T[1]] + su * v * g.points[T[2]]);
+    }
+}
+
+struct Counters {
+  long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0;
+  std::array<long long, kMethodCount> by_method{};
+  long long outside = 0;
+  double recip = 0;
+  std::vector<double> row_sum;
+};
+
+struct TileBuffers {
+  std::vector<std::int8_t> code;
+  std::vector<int> ps, pp, pt, pslot, ss, st, sslot;
+  std::vector<double> out, val;
+  std::vector<std::uint8_t> swapped;
+  std::vector<Vec3> xs, ys, from, to;
+  std::vector<std::uint8_t> hidden;
+  std::vector<double> fx;
+};
+
+class Assembler {
+ public:
+  Assembler(const mesh::PatchGeometry& g, const Options& o, Stats& st) : g_(g), o_(o), st_(st) {}
+  DenseMatrixOperator run();
+
+ private:
+  void tile(int bi, int bj, TileBuffers& b, Counters& c);
+  double visible_ratio(int s, int t, TileBuffers& b, Counters& c) const;
+
+  const mesh::PatchGeometry& g_;
+  const Options& o_;
+  Stats& st_;
+  std::unique_ptr<Prepared> prep_;
+  DenseMatrixOperator::Matrix* F_ = nullptr;
+  std::shared_ptr<const Visibility> caster_;
+  detail::OccluderTree tree_;
+  bool occlusion_ = false;
+  int qk_ = 1, tk1_ = 1, tk2_ = 1;  // source samples qk x qk, target samples tk1 x tk2
+};
+
+double Assembler::visible_ratio(int s, int t, TileBuffers& b, Counters& c) const {
+  const std::uint64_t seed = mix(std::uint64_t(s) * 0x100000001ull + std::uint64_t(t));
+  sample_patch(g_, prep_->P, s, qk_, qk_, seed, b.xs);
+  sample_patch(g_, prep_->P, t, tk1_, tk2_, mix(seed), b.ys);
+  const Vec3 &ns = g_.normal[s], &nt = g_.normal[t];
+  b.from.clear();
+  b.to.clear();
+  b.fx.assign(b.xs.size(), 0.0);
+  for (size_t q = 0; q < b.xs.size(); ++q) {
+    b.fx[q] = point_to_polygon(b.xs[q], ns, g_.polygon(t));
+    if (!(b.fx[q] > 0)) continue;
+    for (const Vec3& y : b.ys) {
+      const Vec3 d = y - b.xs[q];
+      if (ns.dot(d) > 0 && nt.dot(d) < 0) {  // only the part of P_t in front of x, seen from its front
+        b.from.push_back(b.xs[q]);
+        b.to.push_back(y);
+      }
+    }
+  }
+  b.hidden.assign(b.from.size(), 0);
+  if (!b.from.empty()) caster_->occluded(b.from, b.to, s, t, b.hidden);
+  c.rays += (long long)b.from.size();
+  // Visible fraction per source point, weighted by its unoccluded point form factor.
+  double num = 0, den = 0;
+  size_t r = 0;
+  for (size_t q = 0; q < b.xs.size(); ++q) {
+    if (!(b.fx[q] > 0)) continue;
+    int valid = 0, seen = 0;
+    for (const Vec3& y : b.ys) {
+      const Vec3 d = y - b.xs[q];
+      if (ns.dot(d) > 0 && nt.dot(d) < 0) {
+        ++valid;
+        seen += b.hidden[r++] ? 0 : 1;
+      }
+    }
+    if (valid == 0) continue;
+    num += b.fx[q] * seen / valid;
+    den += b.fx[q];
+  }
+  // No sample saw the target (a sliver pair): no evidence of occlusion, keep the unoccluded value.
+  if (!(den > 0)) return 1.0;
+  return std::min(1.0, num / den);
+}
+
+void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
+  const Prepared& pr = *prep_;
+  const detail::SoA& s = pr.soa;
+  const detail::BatchKernels& K = detail::batch_kernels();
+  const int n = pr.P.n;
+  const int i0 = bi * kBlock, i1 = std::min(n, i0 + kBlock), j0 = bj * kBlock, j1 = std::min(n, j0 + kBlock);
+  const double tol = o_.tolerance;
+  b.val.assign(size_t(kBlock) * kBlock, 0.0);
+  b.swapped.assign(size_t(kBlock) * kBlock, 0);
+  b.code.resize(kBlock + 16);
+  b.pp.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear();
+  b.ss.clear(), b.st.clear(), b.sslot.clear();
+  for (int i = i0; i < i1; ++i) {
+    const int js = bi == bj ? i + 1 : j0;
+    if (js >= j1) continue;
+    // Classification, and tiers 0/1 evaluated in the same pass, straight into the tile's value buffer.
+    K.classify(s, i, js, j1, tol, b.code.data(), b.val.data() + (i - i0) * kBlock + (js - j0));
+    for (int j = js; j < j1; ++j) {
+      const int code = b.code[j - js];
+      const int slot = (i - i0) * kBlock + (j - j0);
+      if (code == detail::kCodeCulled) {
+        ++c.culled;
+        ++c.by_method[detail::kCulled];
+        continue;
+      }
+      if (code == detail::kCodeSlow) {
+        b.ss.push_back(i);
+        b.st.push_back(j);
+        b.sslot.push_back(slot);
+        continue;
+      }
+      const bool swap = code > detail::kCodeSwap;
+      const int m = (code & 7) - 1;
+      b.swapped[slot] = swap;
+      ++c.by_method[detail::tier_method(m)];
+      if (m >= 2) {
+        const int src = swap ? j : i, tgt = swap ? i : j;
+        const int p0 = pr.tier_base[m] + pr.P.rule_off[m][src], p1 = pr.tier_base[m] + pr.P.rule_off[m][src + 1];
+        for (int p = p0; p < p1; ++p) {
+          b.pp.push_back(p);
+          b.ps.push_back(src);
+          b.pt.push_back(tgt);
+          b.pslot.push_back(slot);
+        }
+      }
+    }
+  }
+  if (!b.pp.empty()) {
+    b.out.resize(b.pp.size());
+    K.eval_points(s, b.pp.data(), b.ps.data(), b.pt.data(), int(b.pp.size()), b.out.data());
+    for (size_t k = 0; k < b.pp.size(); ++k) b.val[b.pslot[k]] += b.out[k];
+  }
+  for (size_t k = 0; k < b.ss.size(); ++k) {
+    // Scalar path decides its own direction: from the smaller patch.
+    const int i = b.ss[k], j = b.st[k];
+    const bool swap = pr.P.area[j] < pr.P.area[i];
+    const int src = swap ? j : i, tgt = swap ? i : j;
+    const detail::PairEval e = detail::pair_scalar(pr.P, src, tgt, tol);
+    ++c.by_method[e.method];
+    if (e.method == detail::kCulled) ++c.culled;
+    if (e.error > tol) ++c.over_tolerance;
+    b.val[b.sslot[k]] = e.F;
+    b.swapped[b.sslot[k]] = swap;
+  }
+  // Visibility: only for pairs whose segments may meet an occluder.
+  if (occlusion_) {
+    detail::Box bi_box, bj_box;
+    for (int i = i0; i < i1; ++i) bi_box.add(pr.box[i]);
+    for (int j = j0; j < j1; ++j) bj_box.add(pr.box[j]);
+    detail::Shaft ts = detail::make_shaft(bi_box, bj_box);
+    ts.ni = ts.nj = Vec3::Zero();
+    ts.oi = ts.oj = -INFINITY;
+    const bool tile_clear = !tree_.may_block(ts, -1, -1);
+    for (int i = i0; i < i1; ++i)
+      for (int j = (bi == bj ? i + 1 : j0); j < j1; ++j) {
+        const int slot = (i - i0) * kBlock + (j - j0);
+        if (!(b.val[slot] > 0)) continue;
+        if (!tile_clear) {
+          detail::Shaft sh = detail::make_shaft(pr.box[i], pr.box[j]);
+          sh.ni = pr.P.nrm[i];
+          sh.oi = pr.P.offset[i];
+          sh.nj = pr.P.nrm[j];
+          sh.oj = pr.P.offset[j];
+          sh.eps = pr.P.scene_eps;
+          if (!o_.cull_occlusion || tree_.may_block(sh, i, j)) {
+            const bool swap = b.swapped[slot];
+            ++c.ray_tested;
+            b.val[slot] *= visible_ratio(swap ? j : i, swap ? i : j, b, c);
+            continue;
+          }
+        }
+        ++c.shaft_culled;
+      }
+  }
+  // Write both directions; reciprocity gives the second one.
+  auto& F = *F_;
+  const double* area = pr.P.area.data();
+  for (int i = i0; i < i1; ++i) {
+    if (bi == bj) F(i, i) = 0;
+    double* Fi = &F(i, 0);
+    const double Ai = area[i], inv_Ai = 1.0 / Ai;
+    double row = 0;
+    long long outside = 0;
+    for (int j = (bi == bj ? i + 1 : j0); j < j1; ++j) {
+      const int slot = (i - i0) * kBlock + (j - j0);
+      const double v = b.val[slot], Aj = area[j];
+      const bool sw = b.swapped[slot];
+      const double fij = sw ? v * Aj * inv_Ai : v, fji = sw ? v : v * Ai / Aj;
+      Fi[j] = fij;
+      F(j, i) = fji;
+      row += fij;
+      c.row_sum[j] += fji;
+      outside += (fij < 0 || fij > 1) + (fji < 0 || fji > 1);
+      // Reciprocity residual of what is stored; the division only when the running maximum may change.
+      const double ai = Ai * fij, aj = Aj * fji, diff = std::abs(ai - aj), mx = std::max(std::abs(ai), std::abs(aj));
+      if (diff > c.recip * mx) c.recip = diff / mx;
+    }
+    c.row_sum[i] += row;
+    c.outside += outside;
+  }
+}
+
+std::size_t default_max_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page <= 0) return std::size_t(8) << 30;
+  return std::size_t(0.8 * double(pages) * double(page));
+}
+
+DenseMatrixOperator Assembler::run() {
+  const auto t_setup = Clock::now();
+  const int n = g_.size();
+  st_ = Stats{};
+  st_.patches = n;
+  st_.pairs_total = (long long)n * (n - 1) / 2;
+  if (!(o_.tolerance > 0) || !std::isfinite(o_.tolerance))
+    throw InputError("form factors: tolerance must be a positive number (got " + std::to_string(o_.tolerance) + ")");
+  if (o_.rays_per_pair < 1)
+    throw InputError("form factors: rays per pair must be >= 1 (got " + std::to_string(o_.rays_per_pair) + ")");
+  const std::size_t bytes = DenseMatrixOperator::bytes_for(std::size_t(n));
+  const std::size_t limit = o_.max_bytes ? o_.max_bytes : default_max_bytes();
+  st_.bytes = bytes;
+  if (bytes > limit)
+    throw InputError("form factors: the dense matrix for " + std::to_string(n) + " patches needs " +
+                     std::to_string(bytes) + " bytes (" + std::to_string(n) + "^2 doubles), more than the " +
+                     std::to_string(limit) + " bytes allowed" +
+                     (o_.max_bytes ? std::string(" (max_bytes)") : std::string(" (80% of physical memory)")) +
+                     "; use fewer patches");
+  prep_ = std::make_unique<Prepared>(g_);
+  st_.seconds["setup"] = seconds_since(t_setup);
+
+  const auto t_bvh = Clock::now();
+  if (o_.visibility && n > 1) {
+    const std::vector<int> occ = potential_occluders(g_);
+    st_.occluders = int(occ.size());
+    st_.scene_can_occlude = !occ.empty();
+    if (st_.scene_can_occlude) {
+      caster_ = o_.caster ? o_.caster : std::shared_ptr<const Visibility>(make_embree_visibility(g_, occ));
+      tree_ = detail::OccluderTree(g_, occ);
+      occlusion_ = true;
+    }
+  }
+  int k = 1;
+  while ((k + 1) * (k + 1) * (k + 1) * (k + 1) <= o_.rays_per_pair) ++k;
+  qk_ = k;
+  const int ts = std::max(1, o_.rays_per_pair / (k * k));
+  tk1_ = std::max(1, int(std::floor(std::sqrt(double(ts)))));
+  tk2_ = std::max(1, ts / tk1_);
+  st_.seconds["bvh"] = seconds_since(t_bvh);
+
+  const auto t_ff = Clock::now();
+  DenseMatrixOperator::Matrix F;
+  try {
+    F.resize(n, n);
+  } catch (const std::bad_alloc&) {
+    throw InputError("form factors: cannot allocate the dense matrix for " + std::to_string(n) + " patches (" +
+                     std::to_string(bytes) + " bytes)");
+  }
+  F_ = &F;
+  // Transparent huge pages for the big matrix: 512x fewer page faults and TLB misses when writing it.
+  if (bytes >= (std::size_t(64) << 20)) {
+    const std::uintptr_t b0 = (reinterpret_cast<std::uintptr_t>(F.data()) + (std::uintptr_t(2) << 20) - 1) &
+                              ~((std::uintptr_t(2) << 20) - 1);
+    const std::uintptr_t b1 = (reinterpret_cast<std::uintptr_t>(F.data()) + bytes) & ~((std::uintptr_t(2) << 20) - 1);
+    if (b1 > b0) madvise(reinterpret_cast<void*>(b0), b1 - b0, MADV_HUGEPAGE);  // advisory: failure is harmless
+  }
+  const int nb = (n + kBlock - 1) / kBlock;
+  std::vector<std::pair<int, int>> tiles;
+  tiles.reserve(size_t(nb) * (nb + 1) / 2);
+  for (int bi = 0; bi < nb; ++bi)
+    for (int bj = bi; bj < nb; ++bj) tiles.emplace_back(bi, bj);
+  tbb::enumerable_thread_specific<Counters> counters([&] {
+    Counters c;
+    c.row_sum.assign(n, 0.0);
+    return c;
+  });
+  tbb::enumerable_thread_specific<TileBuffers> buffers;
+  std::atomic<long long> done{0};
+  std::mutex progress_mutex;
+  auto last = Clock::now();
+  const double total_tiles = double(tiles.size());
+  auto body = [&](const tbb::blocked_range<size_t>& r) {
+    Counters& c = counters.local();
+    TileBuffers& b = buffers.local();
+    for (size_t t = r.begin(); t != r.end(); ++t) tile(tiles[t].first, tiles[t].second, b, c);
+    const long long d = done.fetch_add((long long)r.size()) + (long long)r.size();
+    if (o_.progress) {
+      std::unique_lock lock(progress_mutex, std::try_to_lock);
+      if (lock.owns_lock() && seconds_since(last) >= 0.1) {
+        last = Clock::now();
+        o_.progress(double(d) / total_tiles);
+      }
+    }
+  };
+  auto loop = [&] { tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles.size(), 1), body); };
+  if (o_.threads > 0) {
+    tbb::task_arena arena(o_.threads);
+    arena.execute(loop);
+  } else {
+    loop();
+  }
+  if (n == 1) F(0, 0) = 0;
+  if (o_.progress) o_.progress(1.0);
+  st_.seconds["form_factors"] = seconds_since(t_ff);
+
+  const auto t_stats = Clock::now();
+  std::vector<double> rows(n, 0.0);
+  std::array<long long, kMethodCount> by{};
+  for (const Counters& c : counters) {
+    for (int i = 0; i < n; ++i) rows[i] += c.row_sum[i];
+    st_.pairs_orientation_culled += c.culled;
+    st_.pairs_shaft_culled += c.shaft_culled;
+    st_.pairs_ray_tested += c.ray_tested;
+    st_.rays_cast += c.rays;
+    st_.pairs_over_tolerance += c.over_tolerance;
+    st_.entries_outside_unit += c.outside;
+    st_.reciprocity_residual = std::max(st_.reciprocity_residual, c.recip);
+    for (int m = 0; m < kMethodCount; ++m) by[m] += c.by_method[m];
+  }
+  for (int m = 0; m < kMethodCount; ++m)
+    if (by[m]) st_.pairs_by_method[detail::kMethodNames[m]] = by[m];
+  if (n > 0) {
+    st_.row_sum_min = *std::min_element(rows.begin(), rows.end());
+    st_.row_sum_max = *std::max_element(rows.begin(), rows.end());
+    double sum = 0;
+    for (double r : rows) sum += r;
+    st_.row_sum_mean = sum / n;
+  }
+  st_.seconds["stats"] = seconds_since(t_stats);
+  return DenseMatrixOperator(std::move(F));
+}
+
+}  // namespace
+
+DenseMatrixOperator assemble(const mesh::PatchGeometry& geometry, const Options& options, Stats* stats) {
+  Stats local;
+  Assembler a(geometry, options, stats ? *stats : local);
+  return a.run();
+}
+
+}  // namespace lambert::formfactor

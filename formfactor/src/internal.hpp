@@ -1,0 +1,97 @@
+#pragma once
+// Internals of the form-factor module (not installed). Units: metres; F dimensionless.
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "batch.hpp"
+#include "lambert/mesh/geometry.hpp"
+
+namespace lambert::formfactor::detail {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Corners of `poly` with n.y - offset >= -eps (Sutherland-Hodgman). Vertices within eps of the plane are kept
+// as they are. For a non-convex polygon the result may contain doubled "bridge" edges along the plane; both
+// the contour formula and the double line integral are sums over edges in which those cancel exactly.
+void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double eps, std::vector<Vec3>& out);
+
+// (1/2pi)|sum_k theta_k n.c_k/|c_k||: the point-to-polygon form factor with no culling or clipping; the caller
+// guarantees that the polygon lies in x's closed front half-space and x is in front of it.
+double contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly);
+
+// A_i F_ij (m^2) by the double line integral (1/2pi) sum_ab (u_a.v_b) int int ln r ds dt, adaptive
+// Gauss-Kronrod on each edge of i with the inner edge integral in closed form. Precondition: Pi lies in the
+// closed front half-space of Pj's plane and vice versa (clip first). abs_tol bounds the error of A_i F_ij.
+struct ContourResult {
+  double AF = 0, error = 0;
+  long long evaluations = 0;
+};
+ContourResult contour_pair(std::span<const Vec3> Pi, std::span<const Vec3> Pj, double abs_tol);
+
+// Quadrature rules (points in reference coordinates, weights summing to 1).
+struct Rule2D {
+  std::vector<std::array<double, 2>> xi;  // reference coordinates
+  std::vector<double> w;
+};
+// m x m Gauss-Legendre on [0,1]^2 (degree 2m-1).
+const Rule2D& gauss_square(int m);
+// Collapsed (Duffy) m x m Gauss rule on the triangle (0,0),(1,0),(0,1): positive weights, degree 2m-1.
+const Rule2D& gauss_triangle(int m);
+// 1D Gauss-Legendre on [0,1].
+void gauss_legendre01(int m, std::vector<double>& x, std::vector<double>& w);
+
+// Per-patch data used by the pair kernels.
+struct PatchData {
+  int n = 0;
+  std::vector<Vec3> c, nrm;          // centroid, unit normal
+  std::vector<double> area, rho;     // area, circumradius about the centroid
+  std::vector<double> offset;        // n . c
+  std::vector<double> eps;           // plane classification tolerance (relative to scene size)
+  std::vector<std::array<double, 6>> M;  // second-moment tensor / area about c: xx yy zz xy xz yz
+  std::vector<std::uint8_t> kind;    // 0 = triangle, 1 = parallelogram, 2 = convex quad, 3 = general polygon
+  // Outer rules: for tier t (m = 2,3,4), patch p: points [rule_off[t][p], rule_off[t][p+1]) in rule_pts.
+  std::array<std::vector<int>, 5> rule_off;
+  std::array<std::vector<std::array<double, 4>>, 5> rule_pts;  // x, y, z, weight (weights sum to 1 per patch)
+  const mesh::PatchGeometry* g = nullptr;
+  double scene_eps = 0;
+};
+PatchData prepare(const mesh::PatchGeometry& g, int max_tier = 4);
+
+// Outer-rule points of tier m on a polygon given by its triangles (m = 1: centroid), appended as x,y,z,w with
+// weights normalised to sum 1. Quads that are convex use the m x m Gauss rule on their bilinear map.
+void outer_rule(std::span<const Vec3> poly, std::span<const std::array<int, 3>> tris, int m,
+                std::vector<std::array<double, 4>>& out);
+
+// A-priori error model: estimate of |F_ij error| for tier m (0 = far field, 1 = centroid + Hessian
+// correction, 2..4 = m x m Gauss) given S = A_j / (pi d^2), r = rho_i / d, q = rho_j / d, with d the distance
+// from c_i to the bounding sphere of P_j. Exponents: the rule's order, 4 for tiers 0/1 and 2m for Gauss,
+// one less for a source (or, tier 0, target) that is not centrally symmetric.
+double tier_error(int m, double S, double r, double q, bool source_symmetric, bool target_symmetric);
+
+// Centroid value plus second-order (Hessian) correction; see pair.cpp.
+double hessian_correction(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& Mi, const Vec3& cj,
+                          const Vec3& nj, double Aj);
+
+// Point-to-point kernel at the centroids plus second-order corrections on both sides (tier 0).
+double far_field(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& Mi, const Vec3& cj, const Vec3& nj,
+                 const std::array<double, 6>& Mj, double Aj);
+
+// Unoccluded F_src,tgt for one pair by the full scalar path (classification, clipping, tier or contour).
+struct PairEval {
+  double F = 0, error = 0;
+  int method = 0;  // index into kMethodNames
+  long long evaluations = 0;
+};
+enum Method { kCulled = 0, kFarField, kCentroidHessian, kGauss4, kGauss9, kGauss16, kContour, kMethodCount };
+extern const char* const kMethodNames[kMethodCount];
+int tier_method(int m);
+PairEval pair_scalar(const PatchData& P, int src, int tgt, double tol);
+
+// Signed distances of polygon corners to a plane: returns (min, max).
+std::array<double, 2> plane_range(std::span<const Vec3> poly, const Vec3& n, double offset);
+
+}  // namespace lambert::formfactor::detail

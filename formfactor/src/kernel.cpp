@@ -1,0 +1,82 @@
+// Point-to-polygon form factor by Lambert's contour formula.
+#include <algorithm>
+#include <cmath>
+
+#include "internal.hpp"
+#include "lambert/formfactor/kernel.hpp"
+
+namespace lambert::formfactor {
+namespace detail {
+
+void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double eps, std::vector<Vec3>& out) {
+  out.clear();
+  const size_t m = poly.size();
+  if (m == 0) return;
+  auto dist = [&](const Vec3& p) { return n.dot(p) - offset; };
+  double sp = dist(poly[m - 1]);
+  for (size_t k = 0; k < m; ++k) {
+    const Vec3& prev = poly[(k + m - 1) % m];
+    const Vec3& cur = poly[k];
+    const double sc = dist(cur);
+    const bool in_p = sp >= -eps, in_c = sc >= -eps;
+    // A crossing is only created between a strictly-inside and a strictly-outside corner: corners within eps
+    // of the plane are kept, so a polygon touching the plane is not cut into slivers.
+    if (in_c) {
+      if (!in_p && sc > eps) out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
+      out.push_back(cur);
+    } else if (in_p && sp > eps) {
+      out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
+    }
+    sp = sc;
+  }
+  if (out.size() < 3) out.clear();
+}
+
+double contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
+  const size_t m = poly.size();
+  double sum = 0;
+  Vec3 a = poly[0] - x;
+  for (size_t k = 0; k < m; ++k) {
+    const Vec3& v1 = poly[(k + 1) % m];
+    const Vec3 b = v1 - x;
+    // a x b = a x (b - a): the edge vector is exact, so far points keep their relative accuracy.
+    const Vec3 c = a.cross(v1 - poly[k]);
+    const double cn = c.norm();
+    if (cn > 0) sum += std::atan2(cn, a.dot(b)) * (n.dot(c) / cn);  // |c| = 0: x on the edge's line or a zero-length edge
+    a = b;
+  }
+  return std::abs(sum) / (2 * kPi);
+}
+
+std::array<double, 2> plane_range(std::span<const Vec3> poly, const Vec3& n, double offset) {
+  double lo = INFINITY, hi = -INFINITY;
+  for (const Vec3& p : poly) {
+    const double s = n.dot(p) - offset;
+    lo = std::min(lo, s);
+    hi = std::max(hi, s);
+  }
+  return {lo, hi};
+}
+
+}  // namespace detail
+
+double point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> polygon) {
+  if (polygon.size() < 3 || !x.allFinite() || !n.allFinite()) return 0;
+  const Vec3 N = mesh::newell_normal(polygon);
+  const double len = N.norm();
+  if (!(len > 0) || !std::isfinite(len)) return 0;
+  // One-sided: x must be strictly in front of the polygon's plane.
+  if (!((x - polygon[0]).dot(N) > 0)) return 0;
+  const double nn = n.norm();
+  if (!(nn > 0)) return 0;
+  const Vec3 u = n / nn;
+  const auto [lo, hi] = detail::plane_range(polygon, u, u.dot(x));
+  if (!(hi > 0)) return 0;  // entirely behind or in x's tangent plane
+  if (lo >= 0) return detail::contour_sum(x, u, polygon);
+  thread_local std::vector<Vec3> clipped;
+  detail::clip_front(polygon, u, u.dot(x), 0.0, clipped);
+  if (clipped.size() < 3) return 0;
+  return detail::contour_sum(x, u, clipped);
+}
+
+}  // namespace lambert::formfactor

@@ -1,0 +1,252 @@
+// One pair, scalar path: orientation culling, a-priori choice of the outer rule, or the adaptive contour.
+#include <algorithm>
+#include <cmath>
+
+#include "internal.hpp"
+#include "lambert/formfactor/kernel.hpp"
+
+namespace lambert::formfactor {
+namespace detail {
+
+const char* const kMethodNames[kMethodCount] = {"orientation_culled", "far_field", "centroid_hessian", "gauss4",
+                                                "gauss9",             "gauss16",   "contour"};
+
+int tier_method(int m) { return kFarField + m; }
+
+namespace {
+
+bool convex_quad(std::span<const Vec3> q, const Vec3& n) {
+  if (q.size() != 4) return false;
+  for (int k = 0; k < 4; ++k) {
+    const Vec3 e0 = q[(k + 1) % 4] - q[k], e1 = q[(k + 2) % 4] - q[(k + 1) % 4];
+    if (!(e0.cross(e1).dot(n) > 0)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+void outer_rule(std::span<const Vec3> poly, std::span<const std::array<int, 3>> tris, int m,
+                std::vector<std::array<double, 4>>& out) {
+  const size_t first = out.size();
+  Vec3 nn = mesh::newell_normal(poly);
+  const Vec3 n = nn.normalized();
+  if (m <= 1) {
+    Vec3 c = Vec3::Zero();
+    double A = 0;
+    for (const auto& t : tris) {
+      const double a = 0.5 * (poly[t[1]] - poly[t[0]]).cross(poly[t[2]] - poly[t[0]]).dot(n);
+      c += a * (poly[t[0]] + poly[t[1]] + poly[t[2]]) / 3.0;
+      A += a;
+    }
+    c /= A;
+    out.push_back({c.x(), c.y(), c.z(), 1.0});
+    return;
+  }
+  double total = 0;
+  if (convex_quad(poly, n)) {
+    const Rule2D& r = gauss_square(m);
+    for (size_t k = 0; k < r.w.size(); ++k) {
+      const double s = r.xi[k][0], t = r.xi[k][1];
+      const Vec3 X = (1 - s) * (1 - t) * poly[0] + s * (1 - t) * poly[1] + s * t * poly[2] + (1 - s) * t * poly[3];
+      const Vec3 ds = (1 - t) * (poly[1] - poly[0]) + t * (poly[2] - poly[3]);
+      const Vec3 dt = (1 - s) * (poly[3] - poly[0]) + s * (poly[2] - poly[1]);
+      const double J = ds.cross(dt).dot(n);
+      out.push_back({X.x(), X.y(), X.z(), r.w[k] * J});
+      total += r.w[k] * J;
+    }
+  } else {
+    const Rule2D& r = gauss_triangle(m);
+    for (const auto& t : tris) {
+      const Vec3 &P0 = poly[t[0]], &P1 = poly[t[1]], &P2 = poly[t[2]];
+      const double a = 0.5 * (P1 - P0).cross(P2 - P0).dot(n);
+      for (size_t k = 0; k < r.w.size(); ++k) {
+        const Vec3 X = P0 + r.xi[k][0] * (P1 - P0) + r.xi[k][1] * (P2 - P0);
+        out.push_back({X.x(), X.y(), X.z(), r.w[k] * a});
+        total += r.w[k] * a;
+      }
+    }
+  }
+  for (size_t k = first; k < out.size(); ++k) out[k][3] /= total;
+}
+
+PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
+  PatchData P;
+  const int n = g.size();
+  P.n = n;
+  P.g = &g;
+  P.c = g.centroid;
+  P.nrm = g.normal;
+  P.area = g.area;
+  P.rho.resize(n);
+  P.offset.resize(n);
+  P.M.resize(n);
+  P.kind.resize(n);
+  double scale = 0;
+  for (const Vec3& p : g.points) scale = std::max(scale, p.cwiseAbs().maxCoeff());
+  P.scene_eps = 1e-10 * std::max(scale, 1e-300);
+  for (int t = 2; t <= std::min(max_tier, 4); ++t) P.rule_off[t].assign(1, 0);
+  std::vector<std::array<int, 3>> local;
+  for (int p = 0; p < n; ++p) {
+    const auto poly = g.polygon(p);
+    const Vec3& c = g.centroid[p];
+    double r = 0;
+    for (const Vec3& v : poly) r = std::max(r, (v - c).norm());
+    P.rho[p] = r;
+    P.offset[p] = g.normal[p].dot(c);
+    local.clear();
+    for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
+      const auto& T = g.triangles[t];
+      local.push_back({T[0] - g.offsets[p], T[1] - g.offsets[p], T[2] - g.offsets[p]});
+    }
+    // Second moments about the centroid: per triangle (A/12)(sum v v^T + s s^T), s = sum of corners.
+    std::array<double, 6> M{};
+    for (const auto& t : local) {
+      const Vec3 a = poly[t[0]] - c, b = poly[t[1]] - c, d = poly[t[2]] - c, s = a + b + d;
+      const double At = 0.5 * (b - a).cross(d - a).dot(g.normal[p]);
+      auto acc = [&](int i, int j) { return (a[i] * a[j] + b[i] * b[j] + d[i] * d[j] + s[i] * s[j]) * At / 12; };
+      M[0] += acc(0, 0);
+      M[1] += acc(1, 1);
+      M[2] += acc(2, 2);
+      M[3] += acc(0, 1);
+      M[4] += acc(0, 2);
+      M[5] += acc(1, 2);
+    }
+    for (double& v : M) v /= g.area[p];
+    P.M[p] = M;
+    if (poly.size() == 3) {
+      P.kind[p] = 0;
+    } else if (poly.size() == 4 && convex_quad(poly, g.normal[p])) {
+      const double sym = (poly[0] + poly[2] - poly[1] - poly[3]).norm();
+      P.kind[p] = sym <= 1e-12 * std::max(r, 1e-300) ? 1 : 2;
+    } else {
+      P.kind[p] = 3;
+    }
+    for (int t = 2; t <= std::min(max_tier, 4); ++t) {
+      outer_rule(poly, local, t, P.rule_pts[t]);
+      P.rule_off[t].push_back(int(P.rule_pts[t].size()));
+    }
+  }
+  return P;
+}
+
+double tier_error(int m, double S, double r, double q, bool source_symmetric, bool target_symmetric) {
+  const double r2 = r * r, q2 = q * q;
+  if (m == 0)
+    return kTierConstant[0][source_symmetric ? 1 : 0] * S *
+           ((source_symmetric ? r2 * r2 : r2 * r) + (target_symmetric ? q2 * q2 : q2 * q) + r2 * q2);
+  const int p = (m == 1 ? 4 : 2 * m) - (source_symmetric ? 0 : 1);
+  double rp = 1;
+  for (int k = 0; k < p; ++k) rp *= r;
+  if (m == 1) rp += r2 * q2;  // the Hessian is taken at the target's centroid
+  return kTierConstant[m][source_symmetric ? 1 : 0] * S * rp;
+}
+
+double hessian_correction(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& M, const Vec3& cj,
+                          const Vec3& nj, double Aj) {
+  // f(x) ~ A_j K(x, c_j) with K = (n_i.(c_j - x)) (n_j.u) / (pi |u|^4), u = x - c_j; n_i.(c_j - x) is constant
+  // for x in P_i's plane. Correction = (1/2) tr(M Hess_x K) A_j.
+  const Vec3 u = ci - cj;
+  const double uu = u.squaredNorm();
+  const double A = ni.dot(cj - ci), nu = nj.dot(u);
+  const Vec3 Mu(M[0] * u.x() + M[3] * u.y() + M[4] * u.z(), M[3] * u.x() + M[1] * u.y() + M[5] * u.z(),
+                M[4] * u.x() + M[5] * u.y() + M[2] * u.z());
+  const double trM = M[0] + M[1] + M[2];
+  const double i3 = 1.0 / (uu * uu * uu);
+  const double tr = -8 * nj.dot(Mu) * i3 - 4 * nu * trM * i3 + 24 * nu * u.dot(Mu) * i3 / uu;
+  return 0.5 * Aj * A / kPi * tr;
+}
+
+double far_field(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& Mi, const Vec3& cj, const Vec3& nj,
+                 const std::array<double, 6>& Mj, double Aj) {
+  // Second-order expansion of (1/A_i) int int K about the two centroids: K0 A_j + (1/2) tr(M_i Hess_x K) A_j
+  // + (1/2) tr(M_j Hess_y K) A_j; first-order terms vanish at centroids, the mixed term too.
+  const Vec3 u = ci - cj;
+  const double uu = u.squaredNorm(), inv = 1.0 / uu;
+  const double A = -ni.dot(u), nu = nj.dot(u);
+  auto mul = [](const std::array<double, 6>& M, const Vec3& v) {
+    return Vec3(M[0] * v.x() + M[3] * v.y() + M[4] * v.z(), M[3] * v.x() + M[1] * v.y() + M[5] * v.z(),
+                M[4] * v.x() + M[5] * v.y() + M[2] * v.z());
+  };
+  const Vec3 Miu = mul(Mi, u), Mju = mul(Mj, u);
+  const double i3 = inv * inv * inv;
+  const double ts = (-8 * nj.dot(Miu) - 4 * nu * (Mi[0] + Mi[1] + Mi[2]) + 24 * nu * u.dot(Miu) * inv) * i3;
+  const double tt = (8 * ni.dot(Mju) - 4 * A * (Mj[0] + Mj[1] + Mj[2]) + 24 * A * u.dot(Mju) * inv) * i3;
+  return Aj / kPi * (A * nu * inv * inv + 0.5 * A * ts + 0.5 * nu * tt);
+}
+
+PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
+  PairEval out;
+  const mesh::PatchGeometry& g = *P.g;
+  const auto Ps = g.polygon(s), Pt = g.polygon(t);
+  const double eps = P.scene_eps;
+  const auto rt = plane_range(Pt, P.nrm[s], P.offset[s]);
+  const auto rs = plane_range(Ps, P.nrm[t], P.offset[t]);
+  if (!(rt[1] > eps) || !(rs[1] > eps)) {
+    out.method = kCulled;
+    return out;
+  }
+  const bool straddle = rt[0] < -eps || rs[0] < -eps;
+  if (!straddle) {
+    const double D = (P.c[s] - P.c[t]).norm();
+    const double d = D - P.rho[t];
+    if (d > 0 && P.rho[s] <= kMaxAreaRatio * d) {
+      const double S = P.area[t] / (kPi * d * d), r = P.rho[s] / d, q = P.rho[t] / d;
+      const bool sym = P.kind[s] == 1, symt = P.kind[t] == 1;
+      for (int m = 0; m <= 4; ++m) {
+        const double est = tier_error(m, S, r, q, sym, symt);
+        if (est > tol) continue;
+        double F = 0;
+        if (m == 0) {
+          F = far_field(P.c[s], P.nrm[s], P.M[s], P.c[t], P.nrm[t], P.M[t], P.area[t]);
+          out.evaluations = 1;
+        } else if (m == 1) {
+          F = contour_sum(P.c[s], P.nrm[s], Pt) + hessian_correction(P.c[s], P.nrm[s], P.M[s], P.c[t], P.nrm[t], P.area[t]);
+          out.evaluations = 1;
+        } else {
+          for (int k = P.rule_off[m][s]; k < P.rule_off[m][s + 1]; ++k) {
+            const auto& X = P.rule_pts[m][k];
+            F += X[3] * contour_sum(Vec3(X[0], X[1], X[2]), P.nrm[s], Pt);
+          }
+          out.evaluations = P.rule_off[m][s + 1] - P.rule_off[m][s];
+        }
+        out.F = F;
+        out.error = est;
+        out.method = tier_method(m);
+        return out;
+      }
+    }
+  }
+  // Near pair: mutual clipping, then the adaptive double contour integral.
+  thread_local std::vector<Vec3> cs, ct;
+  clip_front(Ps, P.nrm[t], P.offset[t], eps, cs);
+  clip_front(Pt, P.nrm[s], P.offset[s], eps, ct);
+  out.method = kContour;
+  if (cs.size() < 3 || ct.size() < 3) return out;
+  const ContourResult c = contour_pair(cs, ct, tol * P.area[s]);
+  out.F = c.AF / P.area[s];
+  out.error = c.error / P.area[s];
+  out.evaluations = c.evaluations;
+  return out;
+}
+
+}  // namespace detail
+
+PairResult polygon_to_polygon(std::span<const Vec3> Pi, std::span<const Vec3> Pj, double tolerance) {
+  const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(
+      {std::vector<Vec3>(Pi.begin(), Pi.end()), std::vector<Vec3>(Pj.begin(), Pj.end())});
+  const detail::PatchData P = detail::prepare(g);
+  // Integrate from the smaller patch: F of the other direction then inherits an error scaled by A_s/A_t <= 1.
+  const bool swap = g.area[1] < g.area[0];
+  const int s = swap ? 1 : 0, t = 1 - s;
+  const detail::PairEval e = detail::pair_scalar(P, s, t, tolerance);
+  PairResult r;
+  r.method = detail::kMethodNames[e.method];
+  const double Fst = e.F, Fts = e.F * g.area[s] / g.area[t];
+  r.F = swap ? Fts : Fst;
+  r.F_reverse = swap ? Fst : Fts;
+  r.error_estimate = swap ? e.error * g.area[s] / g.area[t] : e.error;
+  return r;
+}
+
+}  // namespace lambert::formfactor

@@ -1,0 +1,139 @@
+#include "shaft.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace lambert::formfactor::detail {
+
+Shaft make_shaft(const Box& a, const Box& b) {
+  Shaft s;
+  s.box = a;
+  s.box.add(b);
+  // For two axes (u, v) and sides (su, sv): if the joint box's face on (u, su) comes from one box only and
+  // its face on (v, sv) from the other only, the hull has a face through the corresponding edges of the two
+  // boxes, parallel to the third axis.
+  for (int u = 0; u < 3; ++u)
+    for (int v = u + 1; v < 3; ++v)
+      for (int su = 0; su < 2; ++su)
+        for (int sv = 0; sv < 2; ++sv) {
+          auto face = [](const Box& x, int axis, int side) { return side ? x.hi[axis] : x.lo[axis]; };
+          auto beyond = [&](const Box& x, const Box& y, int axis, int side) {
+            return side ? face(x, axis, side) > face(y, axis, side) : face(x, axis, side) < face(y, axis, side);
+          };
+          const bool a_u = beyond(a, b, u, su), b_u = beyond(b, a, u, su);
+          const bool a_v = beyond(a, b, v, sv), b_v = beyond(b, a, v, sv);
+          if (!((a_u && b_v) || (b_u && a_v))) continue;
+          const double pu = face(a, u, su), pv = face(a, v, sv), qu = face(b, u, su), qv = face(b, v, sv);
+          // Line through (pu, pv) and (qu, qv); its normal points towards the (su, sv) corner.
+          double nu = qv - pv, nv = -(qu - pu);
+          const double su_sign = su ? 1 : -1, sv_sign = sv ? 1 : -1;
+          if (nu * su_sign + nv * sv_sign < 0) {
+            nu = -nu;
+            nv = -nv;
+          }
+          Vec3 n = Vec3::Zero();
+          n[u] = nu;
+          n[v] = nv;
+          s.n[s.planes] = n;
+          s.d[s.planes] = nu * pu + nv * pv;
+          ++s.planes;
+        }
+  return s;
+}
+
+namespace {
+bool box_outside(const Shaft& s, const Box& c) {
+  for (int k = 0; k < 3; ++k)
+    if (c.hi[k] < s.box.lo[k] || c.lo[k] > s.box.hi[k]) return true;
+  const Vec3 ctr = 0.5 * (c.lo + c.hi), half = 0.5 * (c.hi - c.lo);
+  for (int p = 0; p < s.planes; ++p)
+    if (s.n[p].dot(ctr) - s.n[p].cwiseAbs().dot(half) > s.d[p]) return true;
+  // Entirely in the closed back half-space of either patch: the open segments run strictly in front.
+  if (s.ni.dot(ctr) + s.ni.cwiseAbs().dot(half) - s.oi <= s.eps) return true;
+  if (s.nj.dot(ctr) + s.nj.cwiseAbs().dot(half) - s.oj <= s.eps) return true;
+  return false;
+}
+}  // namespace
+
+OccluderTree::OccluderTree(const mesh::PatchGeometry& g, const std::vector<int>& occluders) : g_(&g) {
+  if (occluders.empty()) return;
+  items_ = occluders;
+  boxes_.resize(g.size());
+  centers_.resize(g.size());
+  for (int p : occluders) {
+    Box b;
+    for (const Vec3& v : g.polygon(p)) b.add(v);
+    boxes_[p] = b;
+    centers_[p] = 0.5 * (b.lo + b.hi);
+  }
+  nodes_.reserve(2 * occluders.size());
+  build(0, int(items_.size()));
+}
+
+int OccluderTree::build(int begin, int end) {
+  const int id = int(nodes_.size());
+  nodes_.emplace_back();
+  Box b;
+  for (int k = begin; k < end; ++k) b.add(boxes_[items_[k]]);
+  nodes_[id].box = b;
+  if (end - begin <= 4) {
+    nodes_[id].begin = begin;
+    nodes_[id].end = end;
+    return id;
+  }
+  int axis = 0;
+  const Vec3 ext = b.hi - b.lo;
+  if (ext[1] > ext[axis]) axis = 1;
+  if (ext[2] > ext[axis]) axis = 2;
+  const int mid = (begin + end) / 2;
+  std::nth_element(items_.begin() + begin, items_.begin() + mid, items_.begin() + end,
+                   [&](int x, int y) { return centers_[x][axis] < centers_[y][axis]; });
+  const int l = build(begin, mid);
+  const int r = build(mid, end);
+  nodes_[id].left = l;
+  nodes_[id].right = r;
+  return id;
+}
+
+bool OccluderTree::may_block(const Shaft& s, int ia, int ib) const {
+  if (nodes_.empty()) return false;
+  int stack[64];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& nd = nodes_[stack[--top]];
+    if (box_outside(s, nd.box)) continue;
+    if (nd.left >= 0) {
+      stack[top++] = nd.left;
+      stack[top++] = nd.right;
+      continue;
+    }
+    for (int k = nd.begin; k < nd.end; ++k) {
+      const int p = items_[k];
+      if (p == ia || p == ib) continue;
+      if (box_outside(s, boxes_[p])) continue;
+      // Tighter: the occluder's own corners against the shaft planes and the two patch planes.
+      const auto poly = g_->polygon(p);
+      bool out = false;
+      for (int q = 0; q < s.planes && !out; ++q) {
+        out = true;
+        for (const Vec3& v : poly)
+          if (s.n[q].dot(v) <= s.d[q]) {
+            out = false;
+            break;
+          }
+      }
+      if (out) continue;
+      bool behind_i = true, behind_j = true;
+      for (const Vec3& v : poly) {
+        behind_i = behind_i && s.ni.dot(v) - s.oi <= s.eps;
+        behind_j = behind_j && s.nj.dot(v) - s.oj <= s.eps;
+      }
+      if (behind_i || behind_j) continue;
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace lambert::formfactor::detail

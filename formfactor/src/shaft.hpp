@@ -1,0 +1,57 @@
+#pragma once
+// Shaft culling (Haines & Wallace 1991): the convex hull of two boxes is bounded by their joint box and by
+// planes through matching edges of the two boxes. A segment between the two patches lies in that shaft and
+// in front of both patches' planes, so an occluder outside either cannot block it.
+#include <array>
+#include <vector>
+
+#include "lambert/mesh/geometry.hpp"
+
+namespace lambert::formfactor::detail {
+
+struct Box {
+  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
+  void add(const Vec3& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  void add(const Box& b) {
+    lo = lo.cwiseMin(b.lo);
+    hi = hi.cwiseMax(b.hi);
+  }
+};
+
+struct Shaft {
+  Box box;
+  int planes = 0;
+  std::array<Vec3, 12> n;  // outward normals: the shaft is n.p <= d for every plane
+  std::array<double, 12> d;
+  // Planes of the two patches: segments run in their strict front half-spaces.
+  Vec3 ni, nj;
+  double oi = 0, oj = 0, eps = 0;
+};
+Shaft make_shaft(const Box& a, const Box& b);
+
+// Bounding-volume tree over the patches that can occlude anything.
+class OccluderTree {
+ public:
+  OccluderTree() = default;
+  OccluderTree(const mesh::PatchGeometry& g, const std::vector<int>& occluders);
+  bool empty() const { return nodes_.empty(); }
+  // False only if no occluder other than patches ia and ib can meet the shaft (conservative).
+  bool may_block(const Shaft& s, int ia, int ib) const;
+
+ private:
+  struct Node {
+    Box box;
+    int left = -1, right = -1, begin = 0, end = 0;  // leaf if left < 0: items [begin, end)
+  };
+  int build(int begin, int end);
+  const mesh::PatchGeometry* g_ = nullptr;
+  std::vector<Node> nodes_;
+  std::vector<int> items_;  // patch ids
+  std::vector<Box> boxes_;  // per item
+  std::vector<Vec3> centers_;
+};
+
+}  // namespace lambert::formfactor::detail

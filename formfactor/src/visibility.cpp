@@ -1,0 +1,176 @@
+// Occlusion casters: Embree 3 (single precision BVH) and brute force (double, every triangle).
+#include "lambert/formfactor/visibility.hpp"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace lambert::formfactor {
+
+bool Visibility::occluded(const Vec3& from, const Vec3& to, int ignore_a, int ignore_b) const {
+  std::uint8_t hidden = 0;
+  occluded(std::span<const Vec3>(&from, 1), std::span<const Vec3>(&to, 1), ignore_a, ignore_b,
+           std::span<std::uint8_t>(&hidden, 1));
+  return hidden != 0;
+}
+
+namespace {
+
+// Embree's intersect context extended with the two patches to ignore; the context filter sees every
+// candidate hit and rejects hits on those patches, so rays can start and end exactly on the surfaces.
+struct IgnoreContext {
+  RTCIntersectContext ctx;
+  const int* tri_patch;
+  int a, b;
+};
+
+void ignore_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* c = reinterpret_cast<const IgnoreContext*>(args->context);
+  for (unsigned k = 0; k < args->N; ++k) {
+    if (args->valid[k] == 0) continue;
+    const int patch = c->tri_patch[RTCHitN_primID(args->hit, args->N, k)];
+    if (patch == c->a || patch == c->b) args->valid[k] = 0;
+  }
+}
+
+class EmbreeVisibility final : public Visibility {
+ public:
+  EmbreeVisibility(const mesh::PatchGeometry& g, const std::vector<int>& occluders) {
+    device_ = rtcNewDevice("threads=1");  // BVH build is small; the caller's TBB threads trace rays
+    if (!device_) throw std::runtime_error("Embree: cannot create device (error " +
+                                           std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+    scene_ = rtcNewScene(device_);
+    rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
+    std::vector<int> patches = occluders;
+    if (patches.empty()) {
+      patches.resize(g.size());
+      for (int p = 0; p < g.size(); ++p) patches[p] = p;
+    }
+    size_t ntri = 0;
+    for (int p : patches) ntri += size_t(g.triangle_offsets[p + 1] - g.triangle_offsets[p]);
+    if (ntri > 0) {
+      RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+      auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                              3 * sizeof(float), 3 * ntri));
+      auto* ib = static_cast<unsigned*>(
+          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), ntri));
+      tri_patch_.reserve(ntri);
+      size_t t = 0;
+      for (int p : patches)
+        for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k, ++t) {
+          for (int c = 0; c < 3; ++c) {
+            const Vec3& v = g.points[g.triangles[k][c]];
+            vb[9 * t + 3 * c + 0] = float(v.x());
+            vb[9 * t + 3 * c + 1] = float(v.y());
+            vb[9 * t + 3 * c + 2] = float(v.z());
+            ib[3 * t + c] = unsigned(3 * t + c);
+          }
+          tri_patch_.push_back(p);
+        }
+      rtcCommitGeometry(geom);
+      rtcAttachGeometry(scene_, geom);
+      rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(scene_);
+  }
+  ~EmbreeVisibility() override {
+    rtcReleaseScene(scene_);
+    rtcReleaseDevice(device_);
+  }
+  EmbreeVisibility(const EmbreeVisibility&) = delete;
+  EmbreeVisibility& operator=(const EmbreeVisibility&) = delete;
+
+  void occluded(std::span<const Vec3> from, std::span<const Vec3> to, int ignore_a, int ignore_b,
+                std::span<std::uint8_t> hidden) const override {
+    IgnoreContext c;
+    rtcInitIntersectContext(&c.ctx);
+    c.ctx.filter = &ignore_filter;
+    c.tri_patch = tri_patch_.data();
+    c.a = ignore_a;
+    c.b = ignore_b;
+    constexpr size_t kChunk = 64;
+    RTCRay rays[kChunk];
+    for (size_t b = 0; b < from.size(); b += kChunk) {
+      const size_t n = std::min(kChunk, from.size() - b);
+      for (size_t k = 0; k < n; ++k) {
+        const Vec3& o = from[b + k];
+        const Vec3 d = to[b + k] - o;
+        RTCRay& r = rays[k];
+        r.org_x = float(o.x());
+        r.org_y = float(o.y());
+        r.org_z = float(o.z());
+        r.dir_x = float(d.x());
+        r.dir_y = float(d.y());
+        r.dir_z = float(d.z());
+        r.tnear = 0.0f;
+        r.tfar = 1.0f;  // the open segment: endpoints lie on the ignored patches
+        r.time = 0.0f;
+        r.mask = 0xFFFFFFFFu;
+        r.id = unsigned(k);
+        r.flags = 0;
+      }
+      rtcOccluded1M(scene_, &c.ctx, rays, unsigned(n), sizeof(RTCRay));
+      for (size_t k = 0; k < n; ++k) hidden[b + k] = rays[k].tfar < 0 ? 1 : 0;  // Embree sets tfar = -inf on a hit
+    }
+  }
+
+ private:
+  RTCDevice device_ = nullptr;
+  RTCScene scene_ = nullptr;
+  std::vector<int> tri_patch_;
+};
+
+class BruteForceVisibility final : public Visibility {
+ public:
+  explicit BruteForceVisibility(const mesh::PatchGeometry& g) : g_(g) {
+    for (int p = 0; p < g.size(); ++p)
+      for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) patch_.push_back(p);
+  }
+  void occluded(std::span<const Vec3> from, std::span<const Vec3> to, int ignore_a, int ignore_b,
+                std::span<std::uint8_t> hidden) const override {
+    for (size_t r = 0; r < from.size(); ++r) {
+      const Vec3 o = from[r], d = to[r] - from[r];
+      bool hit = false;
+      for (size_t t = 0; t < patch_.size() && !hit; ++t) {
+        if (patch_[t] == ignore_a || patch_[t] == ignore_b) continue;
+        const auto& T = g_.triangles[t];
+        const Vec3 &A = g_.points[T[0]], &B = g_.points[T[1]], &C = g_.points[T[2]];
+        // Moller-Trumbore; a hit counts for t strictly inside (0, 1) and the closed triangle.
+        const Vec3 e1 = B - A, e2 = C - A, p = d.cross(e2);
+        const double det = e1.dot(p);
+        if (det == 0) continue;
+        const double inv = 1.0 / det;
+        const Vec3 s = o - A;
+        const double u = s.dot(p) * inv;
+        if (u < 0 || u > 1) continue;
+        const Vec3 q = s.cross(e1);
+        const double v = d.dot(q) * inv;
+        if (v < 0 || u + v > 1) continue;
+        const double tt = e2.dot(q) * inv;
+        hit = tt > 0 && tt < 1;
+      }
+      hidden[r] = hit ? 1 : 0;
+    }
+  }
+
+ private:
+  mesh::PatchGeometry g_;  // a copy: the caster may outlive the caller's geometry
+  std::vector<int> patch_;
+};
+
+}  // namespace
+
+std::unique_ptr<Visibility> make_embree_visibility(const mesh::PatchGeometry& geometry,
+                                                   const std::vector<int>& occluders) {
+  return std::make_unique<EmbreeVisibility>(geometry, occluders);
+}
+
+std::unique_ptr<Visibility> make_brute_force_visibility(const mesh::PatchGeometry& geometry) {
+  return std::make_unique<BruteForceVisibility>(geometry);
+}
+
+}  // namespace lambert::formfactor
