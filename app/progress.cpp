@@ -43,7 +43,7 @@ void Progress::done() {
   std::lock_guard lock(mutex_);
   if (finished_) return;
   finished_ = true;
-  print(1.0, true);
+  if (tty_ || last_decile_ < 10) print(1.0, true);
 }
 
 void PhaseTimer::start(const std::string& phase) {
