@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -188,43 +189,33 @@ double Assembler::visible_ratio(int s, int t, TileBuffers& b, Counters& c) const
   sample_patch(g_, prep_->P, s, qk_, qk_, seed, b.xs);
   sample_patch(g_, prep_->P, t, tk1_, tk2_, mix(seed), b.ys);
   const Vec3 &ns = g_.normal[s], &nt = g_.normal[t];
+  // Rays between stratified points of the two patches; each sample pair is weighted by the kernel
+  // cos cos / r^2, so the ratio estimates int int K V / int int K. Pairs of points that do not see each
+  // other's front (straddling patches) carry no weight and cast no ray.
   b.from.clear();
   b.to.clear();
-  b.fx.assign(b.xs.size(), 0.0);
-  for (size_t q = 0; q < b.xs.size(); ++q) {
-    b.fx[q] = point_to_polygon(b.xs[q], ns, g_.polygon(t));
-    if (!(b.fx[q] > 0)) continue;
+  b.fx.clear();
+  for (const Vec3& x : b.xs)
     for (const Vec3& y : b.ys) {
-      const Vec3 d = y - b.xs[q];
-      if (ns.dot(d) > 0 && nt.dot(d) < 0) {  // only the part of P_t in front of x, seen from its front
-        b.from.push_back(b.xs[q]);
-        b.to.push_back(y);
-      }
+      const Vec3 d = y - x;
+      const double cx = ns.dot(d), cy = -nt.dot(d);
+      if (!(cx > 0 && cy > 0)) continue;
+      const double r2 = d.squaredNorm();
+      b.from.push_back(x);
+      b.to.push_back(y);
+      b.fx.push_back(cx * cy / (r2 * r2));
     }
-  }
   b.hidden.assign(b.from.size(), 0);
   if (!b.from.empty()) caster_->occluded(b.from, b.to, s, t, b.hidden);
   c.rays += (long long)b.from.size();
-  // Visible fraction per source point, weighted by its unoccluded point form factor.
   double num = 0, den = 0;
-  size_t r = 0;
-  for (size_t q = 0; q < b.xs.size(); ++q) {
-    if (!(b.fx[q] > 0)) continue;
-    int valid = 0, seen = 0;
-    for (const Vec3& y : b.ys) {
-      const Vec3 d = y - b.xs[q];
-      if (ns.dot(d) > 0 && nt.dot(d) < 0) {
-        ++valid;
-        seen += b.hidden[r++] ? 0 : 1;
-      }
-    }
-    if (valid == 0) continue;
-    num += b.fx[q] * seen / valid;
-    den += b.fx[q];
+  for (size_t k = 0; k < b.from.size(); ++k) {
+    den += b.fx[k];
+    if (!b.hidden[k]) num += b.fx[k];
   }
-  // No sample saw the target (a sliver pair): no evidence of occlusion, keep the unoccluded value.
+  // No sample pair sees the other (a sliver of a straddling pair): no evidence of occlusion.
   if (!(den > 0)) return 1.0;
-  return std::min(1.0, num / den);
+  return num / den;  // <= 1: num sums a subset of den's non-negative terms in the same order
 }
 
 void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
@@ -291,34 +282,55 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     b.val[b.sslot[k]] = e.F;
     b.swapped[b.sslot[k]] = swap;
   }
-  // Visibility: only for pairs whose segments may meet an occluder.
+  // Visibility: only for pairs whose segments may meet an occluder. Shafts are tested hierarchically:
+  // the whole tile, then 8 x 8 sub-tiles, then single pairs.
   if (occlusion_) {
-    detail::Box bi_box, bj_box;
-    for (int i = i0; i < i1; ++i) bi_box.add(pr.box[i]);
-    for (int j = j0; j < j1; ++j) bj_box.add(pr.box[j]);
-    detail::Shaft ts = detail::make_shaft(bi_box, bj_box);
-    ts.ni = ts.nj = Vec3::Zero();
-    ts.oi = ts.oj = -INFINITY;
-    const bool tile_clear = !tree_.may_block(ts, -1, -1);
-    for (int i = i0; i < i1; ++i)
-      for (int j = (bi == bj ? i + 1 : j0); j < j1; ++j) {
-        const int slot = (i - i0) * kBlock + (j - j0);
-        if (!(b.val[slot] > 0)) continue;
-        if (!tile_clear) {
-          detail::Shaft sh = detail::make_shaft(pr.box[i], pr.box[j]);
-          sh.ni = pr.P.nrm[i];
-          sh.oi = pr.P.offset[i];
-          sh.nj = pr.P.nrm[j];
-          sh.oj = pr.P.offset[j];
-          sh.eps = pr.P.scene_eps;
-          if (!o_.cull_occlusion || tree_.may_block(sh, i, j)) {
-            const bool swap = b.swapped[slot];
-            ++c.ray_tested;
-            b.val[slot] *= visible_ratio(swap ? j : i, swap ? i : j, b, c);
-            continue;
-          }
+    auto block_box = [&](int a0, int a1) {
+      detail::Box bx;
+      for (int p = a0; p < a1; ++p) bx.add(pr.box[p]);
+      return bx;
+    };
+    auto clear_between = [&](int a0, int a1, int c0, int c1) {
+      detail::Shaft ts = detail::make_shaft(block_box(a0, a1), block_box(c0, c1));
+      ts.ni = ts.nj = Vec3::Zero();
+      ts.oi = ts.oj = -INFINITY;
+      return !tree_.may_block(ts, -1, -1);
+    };
+    const bool tile_clear = o_.cull_occlusion && clear_between(i0, i1, j0, j1);
+    constexpr int kSub = 8;
+    for (int si = i0; si < i1; si += kSub)
+      for (int sj = j0; sj < j1; sj += kSub) {
+        const int si1 = std::min(i1, si + kSub), sj1 = std::min(j1, sj + kSub);
+        if (bi == bj && sj1 <= si + 1) continue;  // entirely on or below the diagonal
+        bool sub_clear = tile_clear;
+        if (!sub_clear && o_.cull_occlusion) {
+          bool any = false;
+          for (int i = si; i < si1 && !any; ++i)
+            for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1 && !any; ++j)
+              any = b.val[(i - i0) * kBlock + (j - j0)] > 0;
+          if (!any) continue;
+          sub_clear = clear_between(si, si1, sj, sj1);
         }
-        ++c.shaft_culled;
+        for (int i = si; i < si1; ++i)
+          for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1; ++j) {
+            const int slot = (i - i0) * kBlock + (j - j0);
+            if (!(b.val[slot] > 0)) continue;
+            if (!sub_clear) {
+              detail::Shaft sh = detail::make_shaft(pr.box[i], pr.box[j]);
+              sh.ni = pr.P.nrm[i];
+              sh.oi = pr.P.offset[i];
+              sh.nj = pr.P.nrm[j];
+              sh.oj = pr.P.offset[j];
+              sh.eps = pr.P.scene_eps;
+              if (!o_.cull_occlusion || tree_.may_block(sh, i, j)) {
+                const bool swap = b.swapped[slot];
+                ++c.ray_tested;
+                b.val[slot] *= visible_ratio(swap ? j : i, swap ? i : j, b, c);
+                continue;
+              }
+            }
+            ++c.shaft_culled;
+          }
       }
   }
   // Write both directions; reciprocity gives the second one.
@@ -406,7 +418,7 @@ DenseMatrixOperator Assembler::run() {
   }
   F_ = &F;
   // Transparent huge pages for the big matrix: 512x fewer page faults and TLB misses when writing it.
-  if (bytes >= (std::size_t(64) << 20)) {
+  if (bytes >= (std::size_t(64) << 20) && !std::getenv("LAMBERT_NO_THP")) {
     const std::uintptr_t b0 = (reinterpret_cast<std::uintptr_t>(F.data()) + (std::uintptr_t(2) << 20) - 1) &
                               ~((std::uintptr_t(2) << 20) - 1);
     const std::uintptr_t b1 = (reinterpret_cast<std::uintptr_t>(F.data()) + bytes) & ~((std::uintptr_t(2) << 20) - 1);

@@ -1,0 +1,142 @@
+// Point-to-polygon kernel (Lambert's contour formula): conventions, degenerate inputs, clipping.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "lambert/formfactor/exact.hpp"
+#include "lambert/formfactor/kernel.hpp"
+#include "test_formfactor_util.hpp"
+
+using namespace lambert;
+using namespace lambert::formfactor;
+using lambert::fftest::Poly;
+using lambert::fftest::rect;
+
+namespace {
+
+// Brute-force point-to-polygon: midpoint rule on a fine grid of a convex quad (bilinear map), with both
+// cosines clipped at zero. Error ~ 1/M^2 away from the tangent plane, ~1/M where the plane cuts the quad.
+double brute_point_quad(const Vec3& x, const Vec3& n, const Poly& q, int M) {
+  const Vec3 N = mesh::newell_normal(q).normalized();
+  double s = 0;
+  for (int a = 0; a < M; ++a)
+    for (int b = 0; b < M; ++b) {
+      const double u = (a + 0.5) / M, v = (b + 0.5) / M;
+      const Vec3 X = (1 - u) * (1 - v) * q[0] + u * (1 - v) * q[1] + u * v * q[2] + (1 - u) * v * q[3];
+      const Vec3 du = (1 - v) * (q[1] - q[0]) + v * (q[2] - q[3]), dv = (1 - u) * (q[3] - q[0]) + u * (q[2] - q[1]);
+      const Vec3 d = X - x;
+      const double r2 = d.squaredNorm(), cx = n.dot(d), cy = -N.dot(d);
+      if (cx > 0 && cy > 0) s += cx * cy / (M_PI * r2 * r2) * du.cross(dv).norm() / (double(M) * M);
+    }
+  return s;
+}
+
+}  // namespace
+
+// A point on the axis of a directly opposed square: closed form by symmetry from four corner rectangles
+// (catalogue B-? differential element to a parallel rectangle, corner-aligned): F = sum of 4 identical
+// terms with a = b = 0.5, c = 1. The tolerance is rounding (contour formula is exact).
+TEST(FormFactorKernel, DifferentialElementToParallelSquareMatchesCatalogue) {
+  const Poly P = rect(2, 1.0, -0.5, 0.5, -0.5, 0.5, /*front_positive=*/false);  // faces -z, towards the origin
+  const double A = 0.5, B = 0.5, C = 1.0, X = A / C, Y = B / C;
+  const double corner = (X / std::sqrt(1 + X * X) * std::atan(Y / std::sqrt(1 + X * X)) +
+                         Y / std::sqrt(1 + Y * Y) * std::atan(X / std::sqrt(1 + Y * Y))) /
+                        (2 * M_PI);
+  EXPECT_NEAR(point_to_polygon(Vec3::Zero(), Vec3::UnitZ(), P), 4 * corner, 1e-14);
+}
+
+TEST(FormFactorKernel, BackFacingIsZero) {
+  const Poly facing_up = rect(2, 1.0, -0.5, 0.5, -0.5, 0.5, /*front_positive=*/true);  // front away from origin
+  EXPECT_EQ(point_to_polygon(Vec3::Zero(), Vec3::UnitZ(), facing_up), 0.0);
+  const Poly facing_down = rect(2, 1.0, -0.5, 0.5, -0.5, 0.5, false);
+  // The receiver looks away from the polygon: it is entirely behind the receiver's tangent plane.
+  EXPECT_EQ(point_to_polygon(Vec3::Zero(), -Vec3::UnitZ(), facing_down), 0.0);
+}
+
+TEST(FormFactorKernel, CoplanarIsZero) {
+  const Poly P = rect(2, 0.0, 1.0, 2.0, 0.0, 1.0, true);
+  // Receiver in the polygon's plane, normal along the plane's normal or inside the plane.
+  EXPECT_EQ(point_to_polygon(Vec3(0, 0.5, 0), Vec3::UnitZ(), P), 0.0);
+  EXPECT_EQ(point_to_polygon(Vec3(0, 0.5, 0), Vec3::UnitX(), P), 0.0);
+}
+
+TEST(FormFactorKernel, FullyCoveringPolygonGivesOne) {
+  // A huge square 1e-6 above the point covers the whole hemisphere but a sliver: F -> 1.
+  const Poly P = rect(2, 1e-6, -1e3, 1e3, -1e3, 1e3, false);
+  const double F = point_to_polygon(Vec3::Zero(), Vec3::UnitZ(), P);
+  EXPECT_NEAR(F, 1.0, 1e-12);
+  EXPECT_LE(F, 1.0);
+}
+
+TEST(FormFactorKernel, DegenerateInputsStayFinite) {
+  const Poly P = rect(2, 1.0, -0.5, 0.5, -0.5, 0.5, false);
+  const double ref = point_to_polygon(Vec3::Zero(), Vec3::UnitZ(), P);
+  // Zero-length edge (repeated corner): same polygon, same value.
+  Poly dup = P;
+  dup.insert(dup.begin() + 2, dup[2]);
+  EXPECT_NEAR(point_to_polygon(Vec3::Zero(), Vec3::UnitZ(), dup), ref, 1e-15);
+  // Receivers level with an edge or a corner of a perpendicular polygon (an edge's line can only pass
+  // through x when x is in the polygon's plane, which is culled first; the |c| = 0 guard covers rounding).
+  const Poly side = rect(0, 0.0, -1, 1, 0.5, 1.5, true);  // in the plane x = 0, facing +x
+  for (const Vec3& x : {Vec3(1, -1, 0.5), Vec3(1, 1, 1.5), Vec3(1, 0, 0.5), Vec3(0.5, 0, 0.5)}) {
+    const double F = point_to_polygon(x, -Vec3::UnitX(), side);
+    EXPECT_TRUE(std::isfinite(F)) << x.transpose();
+    EXPECT_GE(F, 0.0);
+    EXPECT_LE(F, 1.0);
+  }
+  // Receiver exactly at a corner / on an edge of a perpendicular polygon.
+  const Poly wall = rect(1, 0.0, 0, 1, 0, 1, true);  // plane y = 0, z and x in [0, 1], facing +y
+  for (const Vec3& x : {Vec3(0, 0, 0), Vec3(0.5, 0, 0), Vec3(1, 0, 0)}) {
+    const double F = point_to_polygon(x, Vec3::UnitY(), wall);
+    EXPECT_TRUE(std::isfinite(F));
+    EXPECT_GE(F, 0.0);
+    EXPECT_LE(F, 1.0);
+  }
+  // Tiny and huge distances: relative accuracy against the far-field limit A cos cos / (pi r^2).
+  for (double dist : {1e-9, 1e-3, 1e3, 1e8}) {
+    const double h = 1e-4;
+    const Poly small = rect(2, dist, -h / 2, h / 2, -h / 2, h / 2, false);
+    const double F = point_to_polygon(Vec3::Zero(), Vec3::UnitZ(), small);
+    EXPECT_TRUE(std::isfinite(F)) << dist;
+    if (dist >= 1e3) {
+      EXPECT_NEAR(F / (h * h / (M_PI * dist * dist)), 1.0, 1e-9) << dist;
+    }
+    if (dist <= 1e-9) {
+      EXPECT_NEAR(F, 1.0, 1e-4) << dist;  // 1e-9 above a 1e-4 square: almost the hemisphere
+    }
+  }
+  // NaN input does not propagate.
+  EXPECT_EQ(point_to_polygon(Vec3(NAN, 0, 0), Vec3::UnitZ(), P), 0.0);
+}
+
+// Polygons straddling the receiver's tangent plane: the contour formula after clipping against a brute-force
+// midpoint rule (2000^2 points; its error is dominated by the cut cells, ~1/M: tolerance 2e-4).
+TEST(FormFactorKernel, StraddlingPolygonsMatchBruteForce) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-1, 1);
+  for (int trial = 0; trial < 6; ++trial) {
+    const Vec3 x(U(rng) * 0.3, U(rng) * 0.3, U(rng) * 0.3);
+    const Vec3 n = Vec3(U(rng), U(rng), 1.0).normalized();
+    // A tilted quad above, facing down, cutting the receiver's tangent plane for most trials.
+    Poly q = {{-1.5, -1.5, 0.2}, {-1.5, 1.5, 1.4}, {1.5, 1.5, 0.2}, {1.5, -1.5, -1.0}};
+    const Vec3 off(U(rng), U(rng), 0.3);
+    for (auto& v : q) v += off;
+    const double F = point_to_polygon(x, n, q);
+    const double ref = brute_point_quad(x, n, q, 2000);
+    EXPECT_NEAR(F, ref, 2e-4) << "trial " << trial << " x " << x.transpose() << " n " << n.transpose();
+  }
+}
+
+TEST(FormFactorKernel, NonConvexPolygonEqualsSumOfItsParts) {
+  // L-shaped hexagon = union of two rectangles; the contour formula is additive (tolerance: rounding).
+  const Poly L = {{0, 0, 1}, {0, 2, 1}, {1, 2, 1}, {1, 1, 1}, {2, 1, 1}, {2, 0, 1}};  // faces -z
+  const Poly A = {{0, 0, 1}, {0, 2, 1}, {1, 2, 1}, {1, 0, 1}};
+  const Poly B = {{1, 0, 1}, {1, 1, 1}, {2, 1, 1}, {2, 0, 1}};
+  for (const Vec3& x : {Vec3(0.3, 0.4, 0), Vec3(1.5, 1.5, 0.5), Vec3(-1, 3, 0.9)}) {
+    for (const Vec3& n : {Vec3(0, 0, 1), Vec3(0.6, 0, 0.8)}) {
+      EXPECT_NEAR(point_to_polygon(x, n, L), point_to_polygon(x, n, A) + point_to_polygon(x, n, B), 1e-14)
+          << x.transpose();
+    }
+  }
+}

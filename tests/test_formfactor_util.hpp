@@ -1,0 +1,96 @@
+#pragma once
+// Shared helpers for the form-factor tests: polygon builders and independent reference integrals.
+#include <cmath>
+#include <vector>
+
+#include "lambert/formfactor/kernel.hpp"
+#include "lambert/mesh/geometry.hpp"
+
+namespace lambert::fftest {
+
+using Poly = std::vector<Vec3>;
+
+// Axis-aligned rectangle in the plane `axis` = c, spanning [a0,a1] x [b0,b1] in the other two axes
+// (cyclic order axis+1, axis+2), with its front facing +axis (front = true) or -axis.
+inline Poly rect(int axis, double c, double a0, double a1, double b0, double b1, bool front_positive) {
+  const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  auto P = [&](double a, double b) {
+    Vec3 p;
+    p[axis] = c;
+    p[u] = a;
+    p[v] = b;
+    return p;
+  };
+  // (u, v, axis) is right-handed, so counter-clockwise in (u, v) faces +axis.
+  Poly q = {P(a0, b0), P(a1, b0), P(a1, b1), P(a0, b1)};
+  if (!front_positive) std::swap(q[1], q[3]);
+  return q;
+}
+
+inline Poly regular_polygon(const Vec3& c, const Vec3& n, double radius, int m, double phase = 0) {
+  const Vec3 e1 = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
+  const Vec3 e2 = n.cross(e1);
+  Poly p;
+  for (int k = 0; k < m; ++k) {
+    const double t = phase + 2 * M_PI * k / m;
+    p.push_back(c + radius * (std::cos(t) * e1 + std::sin(t) * e2));
+  }
+  return p;
+}
+
+// Gauss-Legendre nodes/weights on [0, 1] (Golub-Welsch free: Newton on Legendre polynomials).
+inline void gauss01(int m, std::vector<double>& x, std::vector<double>& w) {
+  x.resize(m);
+  w.resize(m);
+  for (int i = 0; i < m; ++i) {
+    double z = std::cos(M_PI * (i + 0.75) / (m + 0.5)), dp = 1;
+    for (int it = 0; it < 100; ++it) {
+      double p0 = 1, p1 = z;
+      for (int k = 2; k <= m; ++k) {
+        const double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+        p0 = p1;
+        p1 = p2;
+      }
+      dp = m * (z * p1 - p0) / (z * z - 1);
+      const double dz = p1 / dp;
+      z -= dz;
+      if (std::abs(dz) < 1e-16) break;
+    }
+    x[i] = 0.5 * (1 + z);
+    w[i] = 1.0 / ((1 - z * z) * dp * dp);
+  }
+}
+
+// Reference F_ij for a triangle source: the outer integral of the analytic point_to_polygon over the
+// triangle (a, b, c), in collapsed coordinates with geometric grading towards the edge (a, b) (where a
+// neighbour may touch) and towards the corner c: `layers` graded layers of `m`-point Gauss-Legendre rules in
+// each direction. Independent of the library's outer rules and of its contour method.
+inline double graded_triangle_source(const Vec3& a, const Vec3& b, const Vec3& c, const Poly& target,
+                                     int layers = 24, int m = 12, double ratio = 0.2) {
+  const Vec3 n = (b - a).cross(c - a).normalized();
+  const double area = 0.5 * (b - a).cross(c - a).norm();
+  std::vector<double> gx, gw;
+  gauss01(m, gx, gw);
+  // Graded partition of [0, 1]: [0, r^L], [r^L, r^(L-1)], ..., [r, 1] and mirrored for the other end.
+  std::vector<double> cuts = {0.0};
+  for (int k = layers; k >= 1; --k) cuts.push_back(0.5 * std::pow(ratio, k));
+  const size_t half = cuts.size();
+  for (size_t k = half; k-- > 1;) cuts.push_back(1 - cuts[k]);
+  cuts.push_back(1.0);
+  // Point = a + s (b - a) + t (c - a)... as (1 - t) [ (1 - s) a + s b ] + t c, Jacobian (1 - t) * 2 * area.
+  double sum = 0;
+  for (size_t i = 0; i + 1 < cuts.size(); ++i)
+    for (size_t j = 0; j + 1 < cuts.size(); ++j)
+      for (int p = 0; p < m; ++p)
+        for (int q = 0; q < m; ++q) {
+          const double s = cuts[i] + (cuts[i + 1] - cuts[i]) * gx[p];
+          const double t = cuts[j] + (cuts[j + 1] - cuts[j]) * gx[q];
+          const double w = gw[p] * (cuts[i + 1] - cuts[i]) * gw[q] * (cuts[j + 1] - cuts[j]) * (1 - t) * 2;
+          const Vec3 x = (1 - t) * ((1 - s) * a + s * b) + t * c;
+          sum += w * formfactor::point_to_polygon(x, n, target);
+        }
+  (void)area;
+  return sum;  // the weights integrate to 1 over the triangle: this is the area average
+}
+
+}  // namespace lambert::fftest
