@@ -23,14 +23,14 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
+struct CliRun {
   int status;
   std::string output;  // stdout and stderr together
 };
 
-Run run(const std::string& args) {
+CliRun run(const std::string& args) {
   const std::string cmd = std::string(LAMBERT_BINARY) + " " + args + " 2>&1";
-  Run r{0, {}};
+  CliRun r{0, {}};
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return {-1, "popen failed"};
   std::array<char, 4096> buf;
@@ -84,16 +84,16 @@ vtkSmartPointer<vtkUnstructuredGrid> read_vtu(const std::string& file) {
 }  // namespace
 
 TEST_F(Cli, HelpDocumentsEveryCommand) {
-  const Run r = run("--help");
+  const CliRun r = run("--help");
   EXPECT_EQ(r.status, 0) << r.output;
   for (const char* cmd : {"solve", "info", "formfactors", "verify"}) EXPECT_NE(r.output.find(cmd), std::string::npos) << cmd;
-  const Run s = run("solve --help");
+  const CliRun s = run("solve --help");
   for (const char* flag : {"--materials", "--stats", "--threads", "--quiet", "--method", "--tolerance", "-o"})
     EXPECT_NE(s.output.find(flag), std::string::npos) << flag << "\n" << s.output;
 }
 
 TEST_F(Cli, UnknownOptionFails) {
-  const Run r = run("solve " + kExamples + "cornell_box.obj -o " + path("x.vtu") + " --bogus");
+  const CliRun r = run("solve " + kExamples + "cornell_box.obj -o " + path("x.vtu") + " --bogus");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("--bogus"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(path("x.vtu")));
@@ -104,7 +104,7 @@ TEST_F(Cli, EveryExampleSolvesEndToEnd) {
   for (const char* name : {"cornell_box", "room"}) {
     SCOPED_TRACE(name);
     const std::string out = path(std::string(name) + ".vtu"), stats = path(std::string(name) + ".json");
-    const Run r = run("solve " + kExamples + name + ".obj -o " + out + " --stats " + stats);
+    const CliRun r = run("solve " + kExamples + name + ".obj -o " + out + " --stats " + stats);
     ASSERT_EQ(r.status, 0) << r.output;
     auto grid = read_vtu(out);
     ASSERT_GT(grid->GetNumberOfCells(), 0);
@@ -128,7 +128,7 @@ TEST_F(Cli, EveryExampleSolvesEndToEnd) {
 TEST_F(Cli, TwoSquaresFloorRadianceMatchesCatalogue) {
   write("two.mtl", kTwoMtl);
   const std::string obj = write("two.obj", kTwoSquares), out = path("two.vtu");
-  const Run r = run("solve " + obj + " -o " + out + " --quiet");
+  const CliRun r = run("solve " + obj + " -o " + out + " --quiet");
   ASSERT_EQ(r.status, 0) << r.output;
   auto grid = read_vtu(out);
   vtkDataArray* L = grid->GetCellData()->GetArray("radiance");
@@ -147,7 +147,7 @@ TEST_F(Cli, TwoSquaresFloorRadianceMatchesCatalogue) {
 TEST_F(Cli, FormFactorsCsvListsInputFacePairs) {
   write("two.mtl", kTwoMtl);
   const std::string obj = write("two.obj", kTwoSquares), out = path("F.csv"), stats = path("s.json");
-  const Run r = run("formfactors " + obj + " -o " + out + " --stats " + stats + " --quiet");
+  const CliRun r = run("formfactors " + obj + " -o " + out + " --stats " + stats + " --quiet");
   ASSERT_EQ(r.status, 0) << r.output;
   std::ifstream in(out);
   std::string line;
@@ -168,7 +168,7 @@ TEST_F(Cli, FormFactorsCsvListsInputFacePairs) {
 TEST_F(Cli, InfoReportsPowerAndMaterials) {
   write("two.mtl", kTwoMtl);
   const std::string obj = write("two.obj", kTwoSquares);
-  const Run r = run("info " + obj);
+  const CliRun r = run("info " + obj);
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("patches      2"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("3.14159"), std::string::npos) << "pi W from a 1 m^2 lamp of radiance 1\n" << r.output;
@@ -195,7 +195,7 @@ TEST_F(Cli, BadInputNamesTheProblemAndWritesNothing) {
     SCOPED_TRACE(c.obj);
     write("two.mtl", c.mtl);
     const std::string obj = write("two.obj", c.obj), out = path("out.vtu");
-    const Run r = run("solve " + obj + " -o " + out);
+    const CliRun r = run("solve " + obj + " -o " + out);
     EXPECT_NE(r.status, 0);
     EXPECT_NE(r.output.find(c.expect), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(out));
@@ -204,18 +204,18 @@ TEST_F(Cli, BadInputNamesTheProblemAndWritesNothing) {
 }
 
 TEST_F(Cli, UnwritableOutputFailsCleanly) {
-  const Run r = run("solve " + kExamples + "cornell_box.obj -o " + path("no/such/dir/out.vtu") + " --quiet");
+  const CliRun r = run("solve " + kExamples + "cornell_box.obj -o " + path("no/such/dir/out.vtu") + " --quiet");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("no/such/dir"), std::string::npos) << r.output;
 }
 
 TEST_F(Cli, VerifySpherePassesAtDefaults) {
-  const Run r = run("verify sphere");
+  const CliRun r = run("verify sphere");
   EXPECT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("error"), std::string::npos) << r.output;
 }
 
 TEST_F(Cli, VerifyFurnacePassesAtDefaults) {
-  const Run r = run("verify furnace");
+  const CliRun r = run("verify furnace");
   EXPECT_EQ(r.status, 0) << r.output;
 }
