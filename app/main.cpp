@@ -14,6 +14,8 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "lambert/formfactor/assemble.hpp"
+#include "lambert/solver/solve.hpp"
 #include "lambert/mesh/types.hpp"
 
 #ifndef LAMBERT_VERSION
@@ -33,6 +35,9 @@ int main(int argc, char** argv) {
   app.fallthrough(false);
 
   app::CommonOptions common;
+  common.ff_tolerance = formfactor::Options{}.tolerance;
+  common.rays_per_pair = formfactor::Options{}.rays_per_pair;
+  common.max_iterations = solver::Options{}.max_iterations;
   auto add_common = [&](CLI::App* sub, bool with_output) {
     sub->add_option("scene", common.scene, "Scene file: .obj (+ .mtl), .ply or .off")->required()->check(CLI::ExistingFile);
     sub->add_option("--materials", common.materials,
@@ -46,10 +51,12 @@ int main(int argc, char** argv) {
   auto add_formfactor = [&](CLI::App* sub, const char* tolerance_flag) {
     sub->add_flag("--no-visibility", common.no_visibility, "Ignore occlusion (every pair sees each other fully)");
     sub->add_option(tolerance_flag, common.ff_tolerance,
-                    "Absolute tolerance on each form factor F_ij (default: the form-factor module's default)")
-        ->check(CLI::PositiveNumber);
-    sub->add_option("--rays", common.rays_per_pair, "Visibility rays per partially occluded pair (default: module default)")
-        ->check(CLI::PositiveNumber);
+                    "Absolute error bound on each unoccluded form factor F_ij")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    sub->add_option("--rays", common.rays_per_pair, "Visibility rays per pair that may be partially occluded")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
   };
 
   // solve
@@ -61,8 +68,9 @@ int main(int argc, char** argv) {
   solve->add_option("--tolerance", common.solve_tolerance, "Relative residual at which the solve stops")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  solve->add_option("--max-iterations", common.max_iterations, "Iteration limit per channel (default: solver default)")
-      ->check(CLI::PositiveNumber);
+  solve->add_option("--max-iterations", common.max_iterations, "Iteration limit per channel")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   solve->add_option("--crease", common.crease_deg,
                     "Per-vertex averages never cross an edge whose normals differ by more than this (degrees)")
       ->check(CLI::Range(0.0, 180.0))

@@ -5,6 +5,6 @@ cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 bash scripts/build.sh
 mkdir -p out
-./build/lambert solve examples/cornell_box.obj -o out/cornell_box.vtu --stats out/cornell_box.json
+./build/lambert solve examples/cornell_box_fine.obj -o out/cornell_box.vtu --stats out/cornell_box.json
 echo
 echo "Wrote out/cornell_box.vtu: open it in ParaView (paraview out/cornell_box.vtu), color by 'radiance'."
