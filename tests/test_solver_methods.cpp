@@ -383,14 +383,17 @@ TEST(SolverMethod, StagnationIsDetectedBelowRoundOff) {
   }
 }
 
-TEST(SolverMethod, AutoPicksJacobiForShortSeriesAndGmresNearOne) {
+TEST(SolverMethod, AutoChoosesFromReflectanceAndSize) {
   const int n = 50;
   const Synthetic s = make_synthetic(n, 4);
   const formfactor::DenseMatrixOperator F(s.F);
   const ColorField Le = constant(n, 1);
-  EXPECT_EQ(solve(F, s.area, constant(n, 0.3), Le).method, Method::Jacobi);
-  EXPECT_EQ(solve(F, s.area, constant(n, 0.9), Le).method, Method::GMRES);
+  EXPECT_EQ(solve(F, s.area, constant(n, 0), Le).method, Method::Jacobi);
+  EXPECT_EQ(solve(F, s.area, constant(n, 0.3), Le).method, Method::GMRES);
   EXPECT_EQ(solve(F, s.area, constant(n, 0.999), Le).method, Method::GMRES);
+  EXPECT_EQ(choose_method(0.9, 100000), Method::GMRES);
+  EXPECT_EQ(choose_method(0.9, 10000000), Method::BiCGSTAB);  // 31 Krylov vectors would take 2.5 GB
+  EXPECT_EQ(choose_method(0.0, 10000000), Method::Jacobi);
 }
 
 TEST(SolverMethod, ProgressSeesEveryHistoryEntry) {

@@ -117,7 +117,7 @@ TEST(SolverSphere, VaryingEmissionConvergesAtMeasuredRate) {
 
 // White furnace with an occluding block: error within the row-sum bound rho max|delta| / (1 - rho max s)
 // (plus 1e-8 for the solve: the solver adds nothing to the form factors' error) and within the case's
-// tolerance 2e-3 rho / (1 - rho) (visibility is ray-estimated; see verify.hpp).
+// tolerance 5e-4 rho / (1 - rho) (visibility is ray-estimated; see verify.hpp).
 TEST(SolverFurnace, OccludedRoomMatchesClosedForm) {
   for (double rho : {0.9, 0.99}) {
     FurnaceCase c;

@@ -73,14 +73,13 @@ void check_options(const Options& o, int n) {
   }
 }
 
-Method choose(const Options& o, double rho_max) {
-  if (o.method != Method::Auto) return o.method;
-  if (rho_max == 0) return Method::Jacobi;  // L = Le after one product
-  const double sweeps = std::ceil(std::log(o.tolerance) / std::log(rho_max));
-  return sweeps <= kAutoJacobiSweeps ? Method::Jacobi : Method::GMRES;
-}
-
 }  // namespace
+
+Method choose_method(double rho_max, int patches, int restart) {
+  if (rho_max == 0) return Method::Jacobi;
+  const double gmres_bytes = (restart + 1.0) * patches * sizeof(double);
+  return gmres_bytes > 2.0 * (1u << 30) ? Method::BiCGSTAB : Method::GMRES;
+}
 
 Method parse_method(const std::string& name) {
   std::string lower = name;
@@ -130,7 +129,7 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
   sol.radiance = ColorField::Zero(n, 3);
   sol.irradiance = ColorField::Zero(n, 3);
   const double rho_max = n > 0 ? rho.maxCoeff() : 0;
-  sol.method = choose(options, rho_max);
+  sol.method = options.method == Method::Auto ? choose_method(rho_max, n, options.restart) : options.method;
 
   const double max_row_sum = n > 0 ? *std::max_element(row_sum_.begin(), row_sum_.end()) : 0;
   if (rho_max * max_row_sum >= 1) {

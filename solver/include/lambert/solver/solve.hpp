@@ -13,7 +13,7 @@
 namespace lambert::solver {
 
 enum class Method {
-  Auto,         // Jacobi when the Neumann series is short (rho_max^k <= tol within kAutoJacobiSweeps), else GMRES
+  Auto,         // see choose_method()
   Jacobi,       // successive substitution L <- Le + rho F L: the Neumann series, contracts by rho_max per sweep
   GaussSeidel,  // in-place sweeps in patch order; over-relaxed (SOR) when Options::omega != 1
   BiCGSTAB,     // van der Vorst's BiCGSTAB (written here on Eigen vectors), 2 products F x per iteration
@@ -24,8 +24,13 @@ enum class Method {
 Method parse_method(const std::string& name);
 std::string to_string(Method method);
 
-// Auto uses Jacobi when ceil(log(tol) / log(rho_max)) <= kAutoJacobiSweeps (e.g. rho_max <= 0.5 at tol 1e-8).
-inline constexpr int kAutoJacobiSweeps = 30;
+// What Auto resolves to, from the largest reflectance and the patch count (measured in
+// docs/benchmarks_solver.md: GMRES needs fewer products F x than Jacobi at every rho > 0, e.g. 12 vs 25
+// at 0.5 and 20 vs 11,571 at 0.999 on a 3000-patch room; Gauss-Seidel sweeps are sequential):
+//   rho_max == 0                                   -> Jacobi (L = Le, one product for the residual)
+//   (restart + 1) * patches * 8 bytes > 2 GiB      -> BiCGSTAB (7 vectors, for huge matrix-free operators)
+//   otherwise                                      -> GMRES
+Method choose_method(double rho_max, int patches, int restart = 30);
 
 struct Options {
   Method method = Method::Auto;
