@@ -131,11 +131,17 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
   const double rho_max = n > 0 ? rho.maxCoeff() : 0;
   sol.method = options.method == Method::Auto ? choose_method(rho_max, n, options.restart) : options.method;
 
-  const double max_row_sum = n > 0 ? *std::max_element(row_sum_.begin(), row_sum_.end()) : 0;
-  if (rho_max * max_row_sum >= 1) {
+  // ||diag(rho) F||_inf = max_i rho_i sum_j F_ij bounds the Neumann series' contraction factor.
+  double contraction = 0;
+  int worst = -1;
+  for (int i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (rho(i, c) * row_sum_[i] > contraction) contraction = rho(i, c) * row_sum_[i], worst = i;
+  if (contraction >= 1) {
     std::ostringstream msg;
-    msg << "reflectance up to " << rho_max << " with form-factor row sums up to " << max_row_sum
-        << ": rho * row sum >= 1, the Neumann series cannot converge and the solution may be unphysical";
+    msg << "patch " << worst << ": reflectance " << rho.row(worst).maxCoeff() << " times form-factor row sum "
+        << row_sum_[worst] << " is >= 1, so the Neumann series (Jacobi, Gauss-Seidel) may not converge and the "
+        << "solution may be unphysical (row sums above 1 are form-factor error)";
     sol.warnings.push_back(msg.str());
   }
 

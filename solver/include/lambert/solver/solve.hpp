@@ -14,7 +14,7 @@ namespace lambert::solver {
 
 enum class Method {
   Auto,         // see choose_method()
-  Jacobi,       // successive substitution L <- Le + rho F L: the Neumann series, contracts by rho_max per sweep
+  Jacobi,       // successive substitution L <- Le + rho F L (the Neumann series): ~ln(tol)/ln(rho_max) sweeps
   GaussSeidel,  // in-place sweeps in patch order; over-relaxed (SOR) when Options::omega != 1
   BiCGSTAB,     // van der Vorst's BiCGSTAB (written here on Eigen vectors), 2 products F x per iteration
   GMRES,        // restarted GMRES(Options::restart) from Eigen's unsupported IterativeSolvers, 1 product per iteration
@@ -37,7 +37,9 @@ struct Options {
   // Stop when ||Le + rho F L - L||_2 / max(||L||_2, ||Le||_2) <= tolerance, per channel (the floor
   // ||Le|| only matters far from the solution: the exact L >= Le >= 0).
   double tolerance = 1e-8;
-  int max_iterations = 10000;  // per channel: sweeps (Jacobi, Gauss-Seidel) or Krylov iterations
+  // Per channel: sweeps (Jacobi, Gauss-Seidel) or Krylov iterations. Krylov needs ~20; Jacobi at
+  // rho = 0.999 ~10^4 (raise it, or use Auto).
+  int max_iterations = 10000;
   double omega = 1.0;          // Gauss-Seidel relaxation factor, in (0, 2); 1 = plain Gauss-Seidel
   int restart = 30;            // GMRES restart length (Krylov vectors kept), >= 1
   // Optional start (patches x 3, W m^-2 sr^-1), e.g. the radiance of a previous solve after a small
@@ -53,11 +55,12 @@ struct Options {
 // 50 iterations (Jacobi, Gauss-Seidel, BiCGSTAB) or the last 2 restart cycles (GMRES).
 struct ChannelReport {
   int iterations = 0;   // sweeps or Krylov iterations
-  int matvecs = 0;      // products y = F x (Gauss-Seidel sweeps not included: they use row_dot)
-  double residual = 0;  // relative residual of the returned L, recomputed from it: ||Le + rho F L - L|| / ||L||
+  int matvecs = 0;      // products y = F x (Gauss-Seidel: start and convergence checks; sweeps use row_dot)
+  double residual = 0;  // relative residual of the returned L, recomputed from it (as in Options::tolerance)
   std::string stop;     // "converged" | "max_iterations" | "stagnation" | "divergence"
-  // Relative residual per iteration: exact for Jacobi (of the previous iterate) and GMRES cycles, the
-  // running residual (each row at its update) for Gauss-Seidel, the recurrence residual for BiCGSTAB.
+  // Relative residuals: [0] of the start, then one per iteration (GMRES: per restart cycle). Exact for
+  // Jacobi (entry k is that of iterate k) and GMRES; the running residual (each row at its update) for
+  // Gauss-Seidel; the recurrence residual for BiCGSTAB. Convergence is always confirmed exactly.
   std::vector<double> history;
 };
 
@@ -76,7 +79,7 @@ struct Solution {
   double energy_residual = 0;
   bool converged = false;      // every channel stopped with "converged"
   double seconds = 0;          // wall time of the solve
-  std::vector<std::string> warnings;  // e.g. rho_max * max row sum >= 1 (the Neumann series cannot converge)
+  std::vector<std::string> warnings;  // e.g. rho_i * row sum_i >= 1 somewhere (Neumann series may diverge)
 };
 
 // Keeps F (and its row sums) so that a change of emission or reflectance re-solves without
