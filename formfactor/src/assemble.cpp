@@ -156,9 +156,10 @@ struct Counters {
 
 struct TileBuffers {
   std::vector<std::int8_t> code;
-  std::vector<int> ps, pp, pt, pslot, ss, st, sslot;
-  std::vector<double> out, val;
-  std::vector<std::uint8_t> swapped;
+  std::vector<int> ps, pp, pt, pslot, ss, st, pair_i, pair_j;
+  std::vector<std::uint8_t> pair_swap;
+  std::vector<double> out, val, row, rowj;
+  std::vector<int> rest_j;
   std::vector<Vec3> xs, ys, from, to;
   std::vector<std::uint8_t> hidden;
   std::vector<double> fx;
@@ -225,65 +226,70 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   const int n = pr.P.n;
   const int i0 = bi * kBlock, i1 = std::min(n, i0 + kBlock), j0 = bj * kBlock, j1 = std::min(n, j0 + kBlock);
   const double tol = o_.tolerance;
-  b.val.assign(size_t(kBlock) * kBlock, 0.0);
-  b.swapped.assign(size_t(kBlock) * kBlock, 0);
+  const double* area = pr.P.area.data();
+  auto& F = *F_;
   b.code.resize(kBlock + 16);
-  b.pp.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear();
-  b.ss.clear(), b.st.clear(), b.sslot.clear();
+  b.pp.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear(), b.ss.clear(), b.st.clear();
+  b.pair_i.clear(), b.pair_j.clear(), b.pair_swap.clear();
+  long long counts[3] = {0, 0, 0};
+  b.rest_j.resize(kBlock + 16);
+  // 1. Classification, with tiers 0/1 evaluated in the same pass straight into row i of the matrix (F_ij).
   for (int i = i0; i < i1; ++i) {
     const int js = bi == bj ? i + 1 : j0;
+    if (bi == bj) F(i, i) = 0;
     if (js >= j1) continue;
-    // Classification, and tiers 0/1 evaluated in the same pass, straight into the tile's value buffer.
-    K.classify(s, i, js, j1, tol, b.code.data(), b.val.data() + (i - i0) * kBlock + (js - j0));
-    for (int j = js; j < j1; ++j) {
-      const int code = b.code[j - js];
-      const int slot = (i - i0) * kBlock + (j - j0);
-      if (code == detail::kCodeCulled) {
-        ++c.culled;
-        ++c.by_method[detail::kCulled];
-        continue;
-      }
+    const int nrest = K.classify(s, i, js, j1, tol, &F(i, js), b.code.data(), b.rest_j.data(), counts);
+    for (int r = 0; r < nrest; ++r) {
+      const int code = b.code[r], j = b.rest_j[r];
       if (code == detail::kCodeSlow) {
         b.ss.push_back(i);
         b.st.push_back(j);
-        b.sslot.push_back(slot);
         continue;
       }
       const bool swap = code > detail::kCodeSwap;
       const int m = (code & 7) - 1;
-      b.swapped[slot] = swap;
+      const int src = swap ? j : i, tgt = swap ? i : j;
+      const int k = int(b.pair_i.size());
+      b.pair_i.push_back(i);
+      b.pair_j.push_back(j);
+      b.pair_swap.push_back(swap);
       ++c.by_method[detail::tier_method(m)];
-      if (m >= 2) {
-        const int src = swap ? j : i, tgt = swap ? i : j;
-        const int p0 = pr.tier_base[m] + pr.P.rule_off[m][src], p1 = pr.tier_base[m] + pr.P.rule_off[m][src + 1];
-        for (int p = p0; p < p1; ++p) {
-          b.pp.push_back(p);
-          b.ps.push_back(src);
-          b.pt.push_back(tgt);
-          b.pslot.push_back(slot);
-        }
+      const int p0 = pr.tier_base[m] + pr.P.rule_off[m][src], p1 = pr.tier_base[m] + pr.P.rule_off[m][src + 1];
+      for (int p = p0; p < p1; ++p) {
+        b.pp.push_back(p);
+        b.ps.push_back(src);
+        b.pt.push_back(tgt);
+        b.pslot.push_back(k);
       }
     }
   }
+  c.culled += counts[0];
+  c.by_method[detail::kCulled] += counts[0];
+  c.by_method[detail::kFarField] += counts[1];
+  c.by_method[detail::kCentroidHessian] += counts[2];
+  // 2. Outer Gauss rules, 8 (point, target) lanes at a time.
   if (!b.pp.empty()) {
     b.out.resize(b.pp.size());
     K.eval_points(s, b.pp.data(), b.ps.data(), b.pt.data(), int(b.pp.size()), b.out.data());
+    b.val.assign(b.pair_i.size(), 0.0);
     for (size_t k = 0; k < b.pp.size(); ++k) b.val[b.pslot[k]] += b.out[k];
+    for (size_t k = 0; k < b.pair_i.size(); ++k) {
+      const int i = b.pair_i[k], j = b.pair_j[k];
+      F(i, j) = b.pair_swap[k] ? b.val[k] * area[j] / area[i] : b.val[k];
+    }
   }
+  // 3. Scalar path: near, straddling or general polygons; integrated from the smaller patch.
   for (size_t k = 0; k < b.ss.size(); ++k) {
-    // Scalar path decides its own direction: from the smaller patch.
     const int i = b.ss[k], j = b.st[k];
-    const bool swap = pr.P.area[j] < pr.P.area[i];
-    const int src = swap ? j : i, tgt = swap ? i : j;
-    const detail::PairEval e = detail::pair_scalar(pr.P, src, tgt, tol);
+    const bool swap = area[j] < area[i];
+    const detail::PairEval e = detail::pair_scalar(pr.P, swap ? j : i, swap ? i : j, tol);
     ++c.by_method[e.method];
     if (e.method == detail::kCulled) ++c.culled;
     if (e.error > tol) ++c.over_tolerance;
-    b.val[b.sslot[k]] = e.F;
-    b.swapped[b.sslot[k]] = swap;
+    F(i, j) = swap ? e.F * area[j] / area[i] : e.F;
   }
-  // Visibility: only for pairs whose segments may meet an occluder. Shafts are tested hierarchically:
-  // the whole tile, then 8 x 8 sub-tiles, then single pairs.
+  // 4. Visibility: only for pairs whose segments may meet an occluder. Shafts are tested hierarchically:
+  // the whole tile, then 8 x 8 sub-tiles, then single pairs. The visible fraction is symmetric.
   if (occlusion_) {
     auto block_box = [&](int a0, int a1) {
       detail::Box bx;
@@ -306,15 +312,13 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
         if (!sub_clear && o_.cull_occlusion) {
           bool any = false;
           for (int i = si; i < si1 && !any; ++i)
-            for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1 && !any; ++j)
-              any = b.val[(i - i0) * kBlock + (j - j0)] > 0;
+            for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1 && !any; ++j) any = F(i, j) > 0;
           if (!any) continue;
           sub_clear = clear_between(si, si1, sj, sj1);
         }
         for (int i = si; i < si1; ++i)
           for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1; ++j) {
-            const int slot = (i - i0) * kBlock + (j - j0);
-            if (!(b.val[slot] > 0)) continue;
+            if (!(F(i, j) > 0)) continue;
             if (!sub_clear) {
               detail::Shaft sh = detail::make_shaft(pr.box[i], pr.box[j]);
               sh.ni = pr.P.nrm[i];
@@ -323,9 +327,9 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
               sh.oj = pr.P.offset[j];
               sh.eps = pr.P.scene_eps;
               if (!o_.cull_occlusion || tree_.may_block(sh, i, j)) {
-                const bool swap = b.swapped[slot];
                 ++c.ray_tested;
-                b.val[slot] *= visible_ratio(swap ? j : i, swap ? i : j, b, c);
+                const bool swap = area[j] < area[i];
+                F(i, j) *= visible_ratio(swap ? j : i, swap ? i : j, b, c);
                 continue;
               }
             }
@@ -333,32 +337,13 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
           }
       }
   }
-  // Write both directions; reciprocity gives the second one.
-  auto& F = *F_;
-  const double* area = pr.P.area.data();
-  for (int i = i0; i < i1; ++i) {
-    if (bi == bj) F(i, i) = 0;
-    double* Fi = &F(i, 0);
-    const double Ai = area[i], inv_Ai = 1.0 / Ai;
-    double row = 0;
-    long long outside = 0;
-    for (int j = (bi == bj ? i + 1 : j0); j < j1; ++j) {
-      const int slot = (i - i0) * kBlock + (j - j0);
-      const double v = b.val[slot], Aj = area[j];
-      const bool sw = b.swapped[slot];
-      const double fij = sw ? v * Aj * inv_Ai : v, fji = sw ? v : v * Ai / Aj;
-      Fi[j] = fij;
-      F(j, i) = fji;
-      row += fij;
-      c.row_sum[j] += fji;
-      outside += (fij < 0 || fij > 1) + (fji < 0 || fji > 1);
-      // Reciprocity residual of what is stored; the division only when the running maximum may change.
-      const double ai = Ai * fij, aj = Aj * fji, diff = std::abs(ai - aj), mx = std::max(std::abs(ai), std::abs(aj));
-      if (diff > c.recip * mx) c.recip = diff / mx;
-    }
-    c.row_sum[i] += row;
-    c.outside += outside;
-  }
+  // 5. The other direction by reciprocity, as a blocked transpose (the I x J block is still in cache), with
+  // the row sums and checks of what is stored.
+  b.row.assign(size_t(kBlock), 0.0);
+  b.rowj.assign(size_t(kBlock) + 8, 0.0);
+  K.transpose(area, F.data(), F.cols(), i0, i1, j0, j1, bi == bj, b.row.data(), b.rowj.data(), &c.outside, &c.recip);
+  for (int i = i0; i < i1; ++i) c.row_sum[i] += b.row[i - i0];
+  for (int j = j0; j < j1; ++j) c.row_sum[j] += b.rowj[j - j0];
 }
 
 std::size_t default_max_bytes() {

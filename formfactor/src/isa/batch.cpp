@@ -129,7 +129,10 @@ struct Moments {
   vd trace() const { return xx + yy + zz; }
 };
 
-void classify(const SoA& s, int i, int j0, int j1, double tol, std::int8_t* code, double* val) {
+int classify(const SoA& s, int i, int j0, int j1, double tol, double* val, std::int8_t* rest_code, int* rest_j,
+             long long* counts) {
+  int nrest = 0;
+  vl c_culled = vl{}, c_t0 = vl{}, c_t1 = vl{};
   const vd eps = splat(s.eps);
   const double nix = s.nx[i], niy = s.ny[i], niz = s.nz[i], oi = s.off[i];
   double qix[4], qiy[4], qiz[4];
@@ -138,7 +141,7 @@ void classify(const SoA& s, int i, int j0, int j1, double tol, std::int8_t* code
     qiy[c] = s.qy[c][i];
     qiz[c] = s.qz[c][i];
   }
-  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.rho[i];
+  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.rho[i], inv_Ai = 1.0 / Ai;
   const double fi = s.fast[i], symi = s.sym[i];
   const double Mi[6] = {s.M[0][i], s.M[1][i], s.M[2][i], s.M[3][i], s.M[4][i], s.M[5][i]};
   for (int j = j0; j < j1; j += W) {
@@ -169,7 +172,8 @@ void classify(const SoA& s, int i, int j0, int j1, double tol, std::int8_t* code
     const vd D = vsqrt(dx * dx + dy * dy + dz * dz);
     const vd d = D - rt;
     const vd dd = sel(d > 0, d, splat(1.0));
-    const vd r = rs / dd, q = rt / dd, S = At / (kPi * dd * dd);
+    const vd inv_dd = splat(1.0) / dd;
+    const vd r = rs * inv_dd, q = rt * inv_dd, S = At * inv_dd * inv_dd * (1 / kPi);
     const vl near = (d <= 0) | (r > kMaxAreaRatio);
     const vd r2 = r * r, r3 = r2 * r, r4 = r2 * r2, q2 = q * q;
     auto C = [&](int m) { return sel(ssym, splat(kTierConstant[m][1]), splat(kTierConstant[m][0])); };
@@ -231,20 +235,88 @@ void classify(const SoA& s, int i, int j0, int j1, double tol, std::int8_t* code
         const vd F1 = point_quad(csx, csy, csz, nsx, nsy, nsz, qt) + (0.5 / kPi) * At * A * src;
         F = sel(t1, F1, F);
       }
-      out = sel(t0 | t1, F, splat(0));
+      // Stored as F_ij: a swapped lane computed F_ji, and A_i F_ij = A_j F_ji.
+      out = sel(t0 | t1, sel(swap, F * (Aj * inv_Ai), F), splat(0));
     }
     const int n = j1 - j < W ? j1 - j : W;
-    for (int k = 0; k < n; ++k) {
-      code[j - j0 + k] = static_cast<std::int8_t>(cd[k]);
-      val[j - j0 + k] = out[k];
-    }
+    vl valid;
+    for (int k = 0; k < W; ++k) valid[k] = k < n ? -1 : 0;
+    c_culled -= culled & valid & (cd < 0.5);  // masks are -1 where true
+    c_t0 -= t0 & valid;
+    c_t1 -= t1 & valid;
+    for (int k = 0; k < n; ++k) val[j - j0 + k] = out[k];
+    const vl rest = valid & (cd > 0.5) & ~(t0 | t1);
+    bool any_rest = false;
+    for (int k = 0; k < W; ++k) any_rest |= rest[k] != 0;
+    if (any_rest)
+      for (int k = 0; k < n; ++k)
+        if (rest[k]) {
+          rest_code[nrest] = static_cast<std::int8_t>(cd[k]);
+          rest_j[nrest++] = j + k;
+        }
   }
+  long long a = 0, b = 0, c = 0;
+  for (int k = 0; k < W; ++k) {
+    a += c_culled[k];
+    b += c_t0[k];
+    c += c_t1[k];
+  }
+  counts[0] += a;
+  counts[1] += b;
+  counts[2] += c;
+  return nrest;
 }
+
+// The reciprocal direction of an I x J block: F(j, i) = F(i, j) A_i / A_j, with row sums and checks.
+void transpose(const double* area, double* F, long long stride, int i0, int i1, int j0, int j1, bool diag,
+               double* row_i, double* row_j, long long* outside, double* recip) {
+  long long out_total = 0;
+  double rmax = *recip;
+  for (int i = i0; i < i1; ++i) {
+    const int js = diag ? i + 1 : j0;
+    if (js >= j1) continue;
+    const double* Fi = F + (long long)i * stride;
+    const double Ai = area[i];
+    double rowi = 0;
+    int j = js;
+    vd acc = splat(0), rm = splat(rmax);
+    vl oc = vl{};
+    for (; j + W <= j1; j += W) {
+      const vd fij = load(Fi + j), Aj = load(area + j);
+      const vd fji = fij * Ai / Aj;
+      for (int k = 0; k < W; ++k) F[(long long)(j + k) * stride + i] = fji[k];
+      vd rj = load(row_j + (j - j0)) + fji;
+      std::memcpy(row_j + (j - j0), &rj, sizeof rj);
+      acc += fij;
+      oc -= (fij < 0) | (fij > 1) | (fji < 0) | (fji > 1);
+      const vd ai = Ai * fij, aj = Aj * fji, mx = vmax(vabs(ai), vabs(aj));
+      rm = vmax(rm, sel(mx > 0, vabs(ai - aj) / sel(mx > 0, mx, splat(1.0)), splat(0)));
+    }
+    for (int k = 0; k < W; ++k) {
+      rowi += acc[k];
+      out_total += oc[k];
+      rmax = rm[k] > rmax ? rm[k] : rmax;
+    }
+    for (; j < j1; ++j) {
+      const double fij = Fi[j], Aj = area[j], fji = fij * Ai / Aj;
+      F[(long long)j * stride + i] = fji;
+      row_j[j - j0] += fji;
+      rowi += fij;
+      out_total += (fij < 0 || fij > 1) + (fji < 0 || fji > 1);
+      const double ai = Ai * fij, aj = Aj * fji, mx = __builtin_fmax(__builtin_fabs(ai), __builtin_fabs(aj));
+      if (mx > 0) rmax = __builtin_fmax(rmax, __builtin_fabs(ai - aj) / mx);
+    }
+    row_i[i - i0] += rowi;
+  }
+  *outside += out_total;
+  *recip = rmax;
+}
+
 
 }  // namespace
 
 const BatchKernels& LAMBERT_CAT(batch_kernels_, LAMBERT_ISA_SUFFIX)() {
-  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points};
+  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &transpose};
   return k;
 }
 
