@@ -156,7 +156,7 @@ struct Counters {
 
 struct TileBuffers {
   std::vector<std::int8_t> code;
-  std::vector<int> ps, pp, pt, pslot, ss, st, pair_i, pair_j;
+  std::vector<int> ps, pp, pt, pslot, ss, st, pair_i, pair_j, cs, ct, cslot;
   std::vector<std::uint8_t> pair_swap;
   std::vector<double> out, val, row, rowj;
   std::vector<int> rest_j;
@@ -230,8 +230,9 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   auto& F = *F_;
   b.code.resize(kBlock + 16);
   b.pp.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear(), b.ss.clear(), b.st.clear();
+  b.cs.clear(), b.ct.clear(), b.cslot.clear();
   b.pair_i.clear(), b.pair_j.clear(), b.pair_swap.clear();
-  long long counts[3] = {0, 0, 0};
+  long long counts[2] = {0, 0};
   b.rest_j.resize(kBlock + 16);
   // 1. Classification, with tiers 0/1 evaluated in the same pass straight into row i of the matrix (F_ij).
   for (int i = i0; i < i1; ++i) {
@@ -254,6 +255,12 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
       b.pair_j.push_back(j);
       b.pair_swap.push_back(swap);
       ++c.by_method[detail::tier_method(m)];
+      if (m == 1) {
+        b.cs.push_back(src);
+        b.ct.push_back(tgt);
+        b.cslot.push_back(k);
+        continue;
+      }
       const int p0 = pr.tier_base[m] + pr.P.rule_off[m][src], p1 = pr.tier_base[m] + pr.P.rule_off[m][src + 1];
       for (int p = p0; p < p1; ++p) {
         b.pp.push_back(p);
@@ -266,13 +273,19 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   c.culled += counts[0];
   c.by_method[detail::kCulled] += counts[0];
   c.by_method[detail::kFarField] += counts[1];
-  c.by_method[detail::kCentroidHessian] += counts[2];
-  // 2. Outer Gauss rules, 8 (point, target) lanes at a time.
-  if (!b.pp.empty()) {
-    b.out.resize(b.pp.size());
-    K.eval_points(s, b.pp.data(), b.ps.data(), b.pt.data(), int(b.pp.size()), b.out.data());
+  // 2. Tier 1 (analytic from the centroid) and the outer Gauss rules, 8 lanes at a time.
+  if (!b.pair_i.empty()) {
     b.val.assign(b.pair_i.size(), 0.0);
-    for (size_t k = 0; k < b.pp.size(); ++k) b.val[b.pslot[k]] += b.out[k];
+    if (!b.cs.empty()) {
+      b.out.resize(b.cs.size());
+      K.eval_centroid(s, b.cs.data(), b.ct.data(), int(b.cs.size()), b.out.data());
+      for (size_t k = 0; k < b.cs.size(); ++k) b.val[b.cslot[k]] = b.out[k];
+    }
+    if (!b.pp.empty()) {
+      b.out.resize(b.pp.size());
+      K.eval_points(s, b.pp.data(), b.ps.data(), b.pt.data(), int(b.pp.size()), b.out.data());
+      for (size_t k = 0; k < b.pp.size(); ++k) b.val[b.pslot[k]] += b.out[k];
+    }
     for (size_t k = 0; k < b.pair_i.size(); ++k) {
       const int i = b.pair_i[k], j = b.pair_j[k];
       F(i, j) = b.pair_swap[k] ? b.val[k] * area[j] / area[i] : b.val[k];

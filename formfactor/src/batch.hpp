@@ -31,14 +31,16 @@ constexpr double kMaxAreaRatio = 0.4;  // rho_s / d above this: always the scala
 
 struct BatchKernels {
   const char* name;
-  // Pairs (i, j), j in [j0, j1): val[j - j0] = F_ij (from i to j, whichever patch was the source) for tiers 0
-  // and 1, else 0. Pairs needing more work (Gauss tiers, scalar path) are listed in rest_code / rest_j
-  // (capacity j1 - j0); returns their number. counts[0..2] += pairs culled, tier 0, tier 1. Reads up to 15
+  // Pairs (i, j), j in [j0, j1): val[j - j0] = F_ij (from i to j, whichever patch was the source) for tier
+  // 0, else 0. Pairs needing more work (tiers 1-4, scalar path) are listed in rest_code / rest_j (capacity
+  // j1 - j0); returns their number. counts[0..1] += pairs culled, tier 0. Reads up to 15
   // entries past j1 in the SoA (padding).
   int (*classify)(const SoA& s, int i, int j0, int j1, double tol, double* val, std::int8_t* rest_code, int* rest_j,
                   long long* counts);
   // out[k] = pw[p] * F(x_p -> quad t) for p = pidx[k], source normal of patch sidx[k], t = tidx[k].
   void (*eval_points)(const SoA& s, const int* pidx, const int* sidx, const int* tidx, int count, double* out);
+  // out[k] = F(c_s -> quad t) + Hessian correction (tier 1), s = sidx[k], t = tidx[k].
+  void (*eval_centroid)(const SoA& s, const int* sidx, const int* tidx, int count, double* out);
   // F(j, i) = F(i, j) A_i / A_j for i in [i0, i1), j in [j0, j1) (j > i if diag) in a row-major matrix with
   // the given row stride; row_i / row_j accumulate row sums of rows i / j, outside counts entries outside
   // [0, 1], recip is the running maximum of |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji).

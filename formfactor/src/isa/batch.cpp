@@ -42,6 +42,13 @@ inline vd vabs(vd x) {
   return r;
 }
 inline vd sel(vl m, vd a, vd b) { return m ? a : b; }
+inline bool any(vl m) {
+  long long a[W];
+  std::memcpy(a, &m, sizeof m);
+  long long r = 0;
+  for (int k = 0; k < W; ++k) r |= a[k];
+  return r != 0;
+}
 inline vd vmax(vd a, vd b) { return a > b ? a : b; }
 inline vd vmin(vd a, vd b) { return a < b ? a : b; }
 
@@ -119,6 +126,36 @@ void eval_points(const SoA& s, const int* pidx, const int* sidx, const int* tidx
   }
 }
 
+void eval_centroid(const SoA& s, const int* sidx, const int* tidx, int count, double* out) {
+  for (int b = 0; b < count; b += W) {
+    int S[W], T[W];
+    for (int k = 0; k < W; ++k) {
+      const int l = b + k < count ? b + k : count - 1;  // pad the last batch by repeating a lane
+      S[k] = sidx[l];
+      T[k] = tidx[l];
+    }
+    const Quad q = gather_quad(s, T);
+    const vd cix = gather(s.cx, S), ciy = gather(s.cy, S), ciz = gather(s.cz, S);
+    const vd nix = gather(s.nx, S), niy = gather(s.ny, S), niz = gather(s.nz, S);
+    vd F = point_quad(cix, ciy, ciz, nix, niy, niz, q);
+    // Second-order correction (1/2) tr(M_s Hess K) A_t, as detail::hessian_correction.
+    const vd cjx = gather(s.cx, T), cjy = gather(s.cy, T), cjz = gather(s.cz, T);
+    const vd njx = gather(s.nx, T), njy = gather(s.ny, T), njz = gather(s.nz, T);
+    const vd ux = cix - cjx, uy = ciy - cjy, uz = ciz - cjz;
+    const vd uu = ux * ux + uy * uy + uz * uz;
+    const vd A = -(nix * ux + niy * uy + niz * uz), nu = njx * ux + njy * uy + njz * uz;
+    const vd mxx = gather(s.M[0], S), myy = gather(s.M[1], S), mzz = gather(s.M[2], S);
+    const vd mxy = gather(s.M[3], S), mxz = gather(s.M[4], S), myz = gather(s.M[5], S);
+    const vd Mux = mxx * ux + mxy * uy + mxz * uz, Muy = mxy * ux + myy * uy + myz * uz,
+             Muz = mxz * ux + myz * uy + mzz * uz;
+    const vd i3 = splat(1.0) / (uu * uu * uu);
+    const vd tr = (-8 * (njx * Mux + njy * Muy + njz * Muz) - 4 * nu * (mxx + myy + mzz) +
+                   24 * nu * (ux * Mux + uy * Muy + uz * Muz) / uu) * i3;
+    F += (0.5 / kPi) * gather(s.area, T) * A * tr;
+    for (int k = 0; k < W && b + k < count; ++k) out[b + k] = F[k];
+  }
+}
+
 // Second-order corrections of the kernel at the centroids, u = c_s - c_t (as detail::far_field and
 // hessian_correction in pair.cpp).
 struct Moments {
@@ -129,10 +166,11 @@ struct Moments {
   vd trace() const { return xx + yy + zz; }
 };
 
-int classify(const SoA& s, int i, int j0, int j1, double tol, double* val, std::int8_t* rest_code, int* rest_j,
+int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, std::int8_t* rest_code, int* rest_j,
              long long* counts) {
+  const SoA s = soa;  // a local copy: stores through val cannot alias its pointers, so they stay in registers
   int nrest = 0;
-  vl c_culled = vl{}, c_t0 = vl{}, c_t1 = vl{};
+  vl c_culled = vl{}, c_t0 = vl{};
   const vd eps = splat(s.eps);
   const double nix = s.nx[i], niy = s.ny[i], niz = s.nz[i], oi = s.off[i];
   double qix[4], qiy[4], qiz[4];
@@ -141,129 +179,103 @@ int classify(const SoA& s, int i, int j0, int j1, double tol, double* val, std::
     qiy[c] = s.qy[c][i];
     qiz[c] = s.qz[c][i];
   }
-  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.rho[i], inv_Ai = 1.0 / Ai;
+  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.rho[i];
   const double fi = s.fast[i], symi = s.sym[i];
   const double Mi[6] = {s.M[0][i], s.M[1][i], s.M[2][i], s.M[3][i], s.M[4][i], s.M[5][i]};
   for (int j = j0; j < j1; j += W) {
     // Corners of j against i's plane, corners of i against j's plane.
     vd smin = splat(INFINITY), smax = splat(-INFINITY), tmin = smin, tmax = smax;
     const vd njx = load(s.nx + j), njy = load(s.ny + j), njz = load(s.nz + j), oj = load(s.off + j);
-    Quad qj;
     for (int c = 0; c < 4; ++c) {
-      qj.x[c] = load(s.qx[c] + j);
-      qj.y[c] = load(s.qy[c] + j);
-      qj.z[c] = load(s.qz[c] + j);
-      const vd sc = nix * qj.x[c] + niy * qj.y[c] + niz * qj.z[c] - oi;
+      const vd sc = nix * load(s.qx[c] + j) + niy * load(s.qy[c] + j) + niz * load(s.qz[c] + j) - oi;
       smin = vmin(smin, sc);
       smax = vmax(smax, sc);
       const vd tc = njx * qix[c] + njy * qiy[c] + njz * qiz[c] - oj;
       tmin = vmin(tmin, tc);
       tmax = vmax(tmax, tc);
     }
-    const vl culled = (smax <= eps) | (tmax <= eps);
+    const int n = j1 - j < W ? j1 - j : W;
+    vl valid = vl{} - 1;
+    for (int k = n; k < W; ++k) valid[k] = 0;
+    const vl fast = load(s.fast + j) * fi > 0.5;
+    const vl culled = fast & ((smax <= eps) | (tmax <= eps));  // polygons off the fast path are re-tested
+    if (!any(valid & ~culled)) {  // a whole batch back to back or coplanar (common: same wall)
+      for (int k = 0; k < n; ++k) val[j - j0 + k] = 0;
+      c_culled -= valid;
+      continue;
+    }
     const vl straddle = (smin < -eps) | (tmin < -eps);
     const vd Aj = load(s.area + j), rj = load(s.rho + j);
-    const vl swap = Aj < Ai;  // integrate from the smaller patch
+    const vl swap = Aj < Ai;  // the error model integrates from the smaller patch
     const vd rs = sel(swap, rj, splat(ri)), rt = sel(swap, splat(ri), rj), At = sel(swap, splat(Ai), Aj);
     const vd symj = load(s.sym + j);
     const vl ssym = sel(swap, symj, splat(symi)) > 0.5, tsym = sel(swap, splat(symi), symj) > 0.5;
     const vd cjx = load(s.cx + j), cjy = load(s.cy + j), cjz = load(s.cz + j);
-    const vd dx = cjx - cix, dy = cjy - ciy, dz = cjz - ciz;
-    const vd D = vsqrt(dx * dx + dy * dy + dz * dz);
-    const vd d = D - rt;
+    // u = c_i - c_j
+    const vd ux = cix - cjx, uy = ciy - cjy, uz = ciz - cjz;
+    const vd uu = ux * ux + uy * uy + uz * uz;
+    const vd d = vsqrt(uu) - rt;
     const vd dd = sel(d > 0, d, splat(1.0));
     const vd inv_dd = splat(1.0) / dd;
     const vd r = rs * inv_dd, q = rt * inv_dd, S = At * inv_dd * inv_dd * (1 / kPi);
     const vl near = (d <= 0) | (r > kMaxAreaRatio);
     const vd r2 = r * r, r3 = r2 * r, r4 = r2 * r2, q2 = q * q;
     auto C = [&](int m) { return sel(ssym, splat(kTierConstant[m][1]), splat(kTierConstant[m][0])); };
-    const vd e0 = C(0) * S * (sel(ssym, r4, r3) + sel(tsym, q2 * q2, q2 * q) + r2 * q2);
-    const vd e1 = C(1) * S * (sel(ssym, r4, r3) + r2 * q2);
-    const vd e2 = C(2) * S * sel(ssym, r4, r3);
-    const vd e3 = C(3) * S * sel(ssym, r4 * r2, r4 * r);
-    const vd e4 = C(4) * S * sel(ssym, r4 * r4, r4 * r3);
-    const vd tier = sel(e0 <= tol, splat(0),
-                        sel(e1 <= tol, splat(1),
-                            sel(e2 <= tol, splat(2), sel(e3 <= tol, splat(3), sel(e4 <= tol, splat(4), splat(5))))));
-    const vl fast = load(s.fast + j) * fi > 0.5;
+    const vd rp = sel(ssym, r4, r3);
+    const vd e0 = C(0) * S * (rp + sel(tsym, q2 * q2, q2 * q) + r2 * q2);
+    const vl live = ~(culled | straddle | near) & fast & valid;
+    const vl t0 = live & (e0 <= tol);
+    vd tier = splat(0);
+    if (any(live & ~t0)) {  // only then the costlier rules' estimates
+      const vd e1 = C(1) * S * (rp + r2 * q2);
+      const vd e2 = C(2) * S * rp;
+      const vd e3 = C(3) * S * rp * r2;
+      const vd e4 = C(4) * S * rp * r4;
+      tier = sel(e0 <= tol, splat(0),
+                 sel(e1 <= tol, splat(1), sel(e2 <= tol, splat(2), sel(e3 <= tol, splat(3), sel(e4 <= tol, splat(4), splat(5))))));
+    }
     const vl slow = (~fast) | straddle | near | (tier > 4.5);
     const vd cd = sel(~fast, splat(kCodeSlow),
                       sel(culled, splat(kCodeCulled),
                           sel(slow, splat(kCodeSlow), tier + 1 + sel(swap, splat(kCodeSwap), splat(0)))));
-    // Tiers 0 and 1 are evaluated here, on contiguous target data; roles per lane (s = source, t = target).
-    const vl live = ~(culled | slow);
-    const vl t0 = live & (tier < 0.5), t1 = live & (tier > 0.5) & (tier < 1.5);
     vd out = splat(0);
-    bool any0 = false, any1 = false;
-    for (int k = 0; k < W; ++k) {
-      any0 |= t0[k] != 0;
-      any1 |= t1[k] != 0;
-    }
-    if (any0 || any1) {
-      // u = c_s - c_t, A = n_s.(c_t - c_s), nu = n_t.u
-      const vd ux = sel(swap, dx, -dx), uy = sel(swap, dy, -dy), uz = sel(swap, dz, -dz);
-      const vd nsx = sel(swap, njx, splat(nix)), nsy = sel(swap, njy, splat(niy)), nsz = sel(swap, njz, splat(niz));
-      const vd ntx = sel(swap, splat(nix), njx), nty = sel(swap, splat(niy), njy), ntz = sel(swap, splat(niz), njz);
-      const Moments Mj{load(s.M[0] + j), load(s.M[1] + j), load(s.M[2] + j),
+    if (any(t0)) {
+      // Tier 0, the far-field expansion, is symmetric in (i, j): evaluated directly as F_ij with i as the
+      // "source", A = n_i.(c_j - c_i), nu = n_j.u (as detail::far_field).
+      const Moments MJ{load(s.M[0] + j), load(s.M[1] + j), load(s.M[2] + j),
                        load(s.M[3] + j), load(s.M[4] + j), load(s.M[5] + j)};
       const Moments MI{splat(Mi[0]), splat(Mi[1]), splat(Mi[2]), splat(Mi[3]), splat(Mi[4]), splat(Mi[5])};
-      const Moments Ms{sel(swap, Mj.xx, MI.xx), sel(swap, Mj.yy, MI.yy), sel(swap, Mj.zz, MI.zz),
-                       sel(swap, Mj.xy, MI.xy), sel(swap, Mj.xz, MI.xz), sel(swap, Mj.yz, MI.yz)};
-      const Moments Mt{sel(swap, MI.xx, Mj.xx), sel(swap, MI.yy, Mj.yy), sel(swap, MI.zz, Mj.zz),
-                       sel(swap, MI.xy, Mj.xy), sel(swap, MI.xz, Mj.xz), sel(swap, MI.yz, Mj.yz)};
-      const vd uu = ux * ux + uy * uy + uz * uz;
       const vd inv = splat(1.0) / sel(uu > 0, uu, splat(1.0));
       const vd i3 = inv * inv * inv;
-      const vd A = -(nsx * ux + nsy * uy + nsz * uz), nu = ntx * ux + nty * uy + ntz * uz;
-      const vd uMsu = Ms.mul_dot(ux, uy, uz, ux, uy, uz), ntMsu = Ms.mul_dot(ntx, nty, ntz, ux, uy, uz);
-      const vd src = (-8 * ntMsu - 4 * nu * Ms.trace() + 24 * nu * uMsu * inv) * i3;  // tr(M_s Hess_x g)
-      vd F = splat(0);
-      if (any0) {
-        const vd uMtu = Mt.mul_dot(ux, uy, uz, ux, uy, uz), nsMtu = Mt.mul_dot(nsx, nsy, nsz, ux, uy, uz);
-        const vd tgt = (8 * nsMtu - 4 * A * Mt.trace() + 24 * A * uMtu * inv) * i3;
-        F = (At * (1 / kPi)) * (A * nu * inv * inv + 0.5 * A * src + 0.5 * nu * tgt);
-      }
-      if (any1) {
-        // Analytic point-to-quad from the source centroid, plus the source Hessian correction.
-        Quad qt;
-        for (int c = 0; c < 4; ++c) {
-          qt.x[c] = sel(swap, splat(qix[c]), qj.x[c]);
-          qt.y[c] = sel(swap, splat(qiy[c]), qj.y[c]);
-          qt.z[c] = sel(swap, splat(qiz[c]), qj.z[c]);
-        }
-        const vd csx = sel(swap, cjx, splat(cix)), csy = sel(swap, cjy, splat(ciy)), csz = sel(swap, cjz, splat(ciz));
-        const vd F1 = point_quad(csx, csy, csz, nsx, nsy, nsz, qt) + (0.5 / kPi) * At * A * src;
-        F = sel(t1, F1, F);
-      }
-      // Stored as F_ij: a swapped lane computed F_ji, and A_i F_ij = A_j F_ji.
-      out = sel(t0 | t1, sel(swap, F * (Aj * inv_Ai), F), splat(0));
+      const vd A = -(nix * ux + niy * uy + niz * uz), nu = njx * ux + njy * uy + njz * uz;
+      const vd src = (-8 * MI.mul_dot(njx, njy, njz, ux, uy, uz) - 4 * nu * MI.trace() +
+                      24 * nu * MI.mul_dot(ux, uy, uz, ux, uy, uz) * inv) * i3;  // tr(M_i Hess_x g)
+      const vd tgt = (8 * MJ.mul_dot(splat(nix), splat(niy), splat(niz), ux, uy, uz) - 4 * A * MJ.trace() +
+                      24 * A * MJ.mul_dot(ux, uy, uz, ux, uy, uz) * inv) * i3;   // tr(M_j Hess_y g)
+      out = sel(t0, (Aj * (1 / kPi)) * (A * nu * inv * inv + 0.5 * A * src + 0.5 * nu * tgt), splat(0));
     }
-    const int n = j1 - j < W ? j1 - j : W;
-    vl valid;
-    for (int k = 0; k < W; ++k) valid[k] = k < n ? -1 : 0;
+    if (n < W) {
+      for (int k = 0; k < n; ++k) val[j - j0 + k] = out[k];
+    } else {
+      std::memcpy(val + (j - j0), &out, sizeof out);
+    }
     c_culled -= culled & valid & (cd < 0.5);  // masks are -1 where true
     c_t0 -= t0 & valid;
-    c_t1 -= t1 & valid;
-    for (int k = 0; k < n; ++k) val[j - j0 + k] = out[k];
-    const vl rest = valid & (cd > 0.5) & ~(t0 | t1);
-    bool any_rest = false;
-    for (int k = 0; k < W; ++k) any_rest |= rest[k] != 0;
-    if (any_rest)
+    const vl rest = valid & (cd > 0.5) & ~t0;
+    if (any(rest))
       for (int k = 0; k < n; ++k)
         if (rest[k]) {
           rest_code[nrest] = static_cast<std::int8_t>(cd[k]);
           rest_j[nrest++] = j + k;
         }
   }
-  long long a = 0, b = 0, c = 0;
+  long long a = 0, b = 0;
   for (int k = 0; k < W; ++k) {
     a += c_culled[k];
     b += c_t0[k];
-    c += c_t1[k];
   }
   counts[0] += a;
   counts[1] += b;
-  counts[2] += c;
   return nrest;
 }
 
@@ -316,7 +328,7 @@ void transpose(const double* area, double* F, long long stride, int i0, int i1, 
 }  // namespace
 
 const BatchKernels& LAMBERT_CAT(batch_kernels_, LAMBERT_ISA_SUFFIX)() {
-  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &transpose};
+  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &eval_centroid, &transpose};
   return k;
 }
 
