@@ -182,12 +182,12 @@ class Assembler {
   std::shared_ptr<const Visibility> caster_;
   detail::OccluderTree tree_;
   bool occlusion_ = false;
-  int qk_ = 1, tk1_ = 1, tk2_ = 1;  // source samples qk x qk, target samples tk1 x tk2
+  int qk1_ = 1, qk2_ = 1, tk1_ = 1, tk2_ = 1;  // source samples qk1 x qk2, target samples tk1 x tk2
 };
 
 double Assembler::visible_ratio(int s, int t, TileBuffers& b, Counters& c) const {
   const std::uint64_t seed = mix(std::uint64_t(s) * 0x100000001ull + std::uint64_t(t));
-  sample_patch(g_, prep_->P, s, qk_, qk_, seed, b.xs);
+  sample_patch(g_, prep_->P, s, qk1_, qk2_, seed, b.xs);
   sample_patch(g_, prep_->P, t, tk1_, tk2_, mix(seed), b.ys);
   const Vec3 &ns = g_.normal[s], &nt = g_.normal[t];
   // Rays between stratified points of the two patches; each sample pair is weighted by the kernel
@@ -398,12 +398,14 @@ DenseMatrixOperator Assembler::run() {
       occlusion_ = true;
     }
   }
-  int k = 1;
-  while ((k + 1) * (k + 1) * (k + 1) * (k + 1) <= o_.rays_per_pair) ++k;
-  qk_ = k;
-  const int ts = std::max(1, o_.rays_per_pair / (k * k));
-  tk1_ = std::max(1, int(std::floor(std::sqrt(double(ts)))));
-  tk2_ = std::max(1, ts / tk1_);
+  // Rays per pair R: about sqrt(R) stratified points on each patch, each as a near-square grid.
+  auto grid = [](int count, int& a, int& b) {
+    a = std::max(1, int(std::floor(std::sqrt(double(count)))));
+    b = std::max(1, count / a);
+  };
+  const int per_side = std::max(1, int(std::floor(std::sqrt(double(o_.rays_per_pair)))));
+  grid(per_side, qk1_, qk2_);
+  grid(std::max(1, o_.rays_per_pair / (qk1_ * qk2_)), tk1_, tk2_);
   st_.seconds["bvh"] = seconds_since(t_bvh);
 
   const auto t_ff = Clock::now();

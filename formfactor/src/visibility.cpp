@@ -39,7 +39,9 @@ void ignore_filter(const RTCFilterFunctionNArguments* args) {
 class EmbreeVisibility final : public Visibility {
  public:
   EmbreeVisibility(const mesh::PatchGeometry& g, const std::vector<int>& occluders) {
-    device_ = rtcNewDevice("threads=1");  // BVH build is small; the caller's TBB threads trace rays
+    // Default configuration: "threads=N" would cap the whole process's TBB parallelism (Embree uses a
+    // tbb::global_control for it), and the callers' TBB threads trace the rays anyway.
+    device_ = rtcNewDevice(nullptr);
     if (!device_) throw std::runtime_error("Embree: cannot create device (error " +
                                            std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
     scene_ = rtcNewScene(device_);
