@@ -418,7 +418,7 @@ DenseMatrixOperator Assembler::run() {
   }
   F_ = &F;
   // Transparent huge pages for the big matrix: 512x fewer page faults and TLB misses when writing it.
-  if (bytes >= (std::size_t(64) << 20) && !std::getenv("LAMBERT_NO_THP")) {
+  if (bytes >= (std::size_t(64) << 20)) {
     const std::uintptr_t b0 = (reinterpret_cast<std::uintptr_t>(F.data()) + (std::uintptr_t(2) << 20) - 1) &
                               ~((std::uintptr_t(2) << 20) - 1);
     const std::uintptr_t b1 = (reinterpret_cast<std::uintptr_t>(F.data()) + bytes) & ~((std::uintptr_t(2) << 20) - 1);

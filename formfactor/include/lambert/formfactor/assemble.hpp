@@ -1,14 +1,22 @@
 #pragma once
 // Dense assembly of all patch-to-patch form factors F_ij (dimensionless), with visibility.
 //
-// Accuracy. `tolerance` bounds the absolute error of every unoccluded F_ij (and of F_ji, which reciprocity
-// gives from it: the pair is integrated from its smaller patch, so F_ji's error is at most F_ij's). Far pairs
-// take the cheapest outer rule whose a-priori error bound (kernel derivatives ~ size/distance, constants
-// calibrated x4 above the worst case seen on random polygon pairs) is <= tolerance; near pairs (shared edges
-// or corners, closer than ~3 sizes) use an adaptive double contour integral stopped when its error estimate
-// (Gauss-Kronrod, conservative) is <= tolerance. Default 1e-8: catalogue values are met to ~1e-10.
-// Visibility is NOT covered by `tolerance`: the visible fraction is a ray estimate (rays_per_pair) and only
+// Accuracy. `tolerance` bounds the absolute error of every unoccluded F_ij, and of F_ji, which reciprocity
+// gives from it (each pair is integrated once, from its smaller patch, so F_ji's error is at most F_ij's).
+// A pair is integrated by the cheapest method whose error estimate is <= tolerance:
+//   far_field         centroid-to-centroid kernel + second-order (Hessian) terms on both patches
+//   centroid_hessian  analytic point-to-polygon from the source centroid + Hessian term
+//   gauss4/9/16       m x m Gauss outer rule over the source, analytic (contour) inner integral
+// chosen a priori from size/distance (estimate C S r^p: S = A_t/(pi d^2), r = rho_s/d; C = 4x the worst
+// ratio seen on 40,000 random pairs; on 6,000 further random pairs the largest error was 0.15 x tolerance),
+//   contour           the rest: touching pairs, pairs within 2.5 source radii, pairs cutting each other's
+//                     plane, pairs no rule fits: mutual clipping, then the double line integral with adaptive
+//                     Gauss-Kronrod, stopped when its (conservative) error estimate is <= tolerance.
+// Triangles and convex quads run in SIMD batches; other polygons take the same rules in scalar code.
+// Default 1e-8: catalogue values come out within ~1e-10, every entry of a closed cube within 1e-9.
+// Visibility is NOT covered by `tolerance`: the visible fraction is a ray estimate (rays_per_pair), and only
 // pairs whose segments may actually be blocked are ray-tested.
+// Storage: double (8 N^2 bytes), see dense.hpp.
 #include <cstddef>
 #include <functional>
 #include <map>

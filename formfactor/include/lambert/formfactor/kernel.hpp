@@ -16,13 +16,15 @@ namespace lambert::formfactor {
 double point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> polygon);
 
 // Patch-to-patch F_ij = (1/A_i) * double integral of the kernel over P_i x P_j, unoccluded, one-sided.
-// Computed with the same method selection as assemble(): the smaller polygon is integrated by an outer rule
-// chosen a priori from size/distance, near pairs (shared edges or corners, or closer than their size) by an
-// adaptive double contour integral, each until the estimated absolute error on F_ij is <= tolerance.
+// Same method selection as assemble() (see assemble.hpp): from the smaller polygon, by a rule chosen a
+// priori from size/distance, or for near pairs (shared edges or corners, closer than their size) by an
+// adaptive double contour integral, until the estimated absolute error on F_ij is <= tolerance.
+// Preconditions: planar simple polygons, >= 3 corners, non-zero area (else lambert::InputError).
 struct PairResult {
   double F = 0;           // F_ij (from i to j)
   double F_reverse = 0;   // F_ji, from reciprocity A_i F_ij = A_j F_ji
-  std::string method;     // "orientation_culled", "centroid_hessian", "gauss4", "gauss9", "gauss16", "contour", ...
+  std::string method;     // "orientation_culled", "far_field", "centroid_hessian", "gauss4", "gauss9", "gauss16",
+                          // "contour" (see assemble.hpp)
   double error_estimate = 0;  // estimated absolute error of F (a priori bound or adaptive estimate)
 };
 PairResult polygon_to_polygon(std::span<const Vec3> Pi, std::span<const Vec3> Pj, double tolerance = 1e-8);
