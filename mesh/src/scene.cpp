@@ -73,9 +73,12 @@ std::string vec(const Eigen::Ref<const Eigen::Vector3d>& v) {
   return s;
 }
 
-// "scene.obj:12: face 5" (face indices are 0-based, in file order).
+// Input face index of soup face k (mesh::prepare may have split or dropped faces).
+int input_face(const PolygonSoup& s, int k) { return s.faces[k].origin >= 0 ? s.faces[k].origin : k; }
+
+// "scene.obj:12: face 5" (input face indices are 0-based, in file order).
 std::string face_at(const PolygonSoup& s, int k) {
-  return SourceLoc{s.file, s.faces[k].line}.str() + ": face " + std::to_string(k);
+  return SourceLoc{s.file, s.faces[k].line}.str() + ": face " + std::to_string(input_face(s, k));
 }
 
 std::string vertex_at(const PolygonSoup& s, int v) {
@@ -181,7 +184,7 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
   scene.source = soup.file;
   scene.materials = soup.materials;
   scene.groups = soup.groups;
-  scene.input_faces = static_cast<int>(soup.faces.size());
+  scene.input_faces = soup.input_faces >= 0 ? soup.input_faces : static_cast<int>(soup.faces.size());
   Report& report = scene.report;
   for (const auto& w : soup.warnings) report.warnings.push_back(w);
 
@@ -233,6 +236,7 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
   std::vector<PatchSpec> specs;
   specs.reserve(nf);
   long nonplanar = 0;
+  int worst_k = -1;  // soup face of the worst deviation
   std::vector<Vec3> poly;
   for (int k = 0; k < nf; ++k) {
     const auto& fv = soup.faces[k].vertices;
@@ -261,7 +265,8 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
       ++nonplanar;
       if (dev > report.worst_nonplanarity) {
         report.worst_nonplanarity = dev;
-        report.worst_nonplanar_face = k;
+        report.worst_nonplanar_face = input_face(soup, k);
+        worst_k = k;
       }
       for (const auto& t : tris) specs.push_back({{fv[t[0]], fv[t[1]], fv[t[2]]}, k});
     } else {
@@ -272,7 +277,7 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
     report.warn("nonplanar_faces_triangulated", nonplanar,
                 std::to_string(nonplanar) + " non-planar face" + (nonplanar == 1 ? " was" : "s were") +
                     " split into triangles; worst deviation from the plane " + num(report.worst_nonplanarity) +
-                    " m at " + face_at(soup, report.worst_nonplanar_face));
+                    " m at " + face_at(soup, worst_k));
 
   // 4. Duplicate vertices: distinct used positions with identical coordinates (kept apart here).
   {
@@ -345,7 +350,7 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
   scene.group.resize(np);
   for (int p = 0; p < np; ++p) {
     const SoupFace& f = soup.faces[specs[p].face];
-    scene.face_id[p] = specs[p].face;
+    scene.face_id[p] = input_face(soup, specs[p].face);
     scene.material[p] = f.material;
     scene.group[p] = f.group;
     for (int v : specs[p].corners) polys[p].push_back(soup.positions[v]);

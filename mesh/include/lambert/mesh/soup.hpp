@@ -21,17 +21,21 @@ struct SoupFace {
   int material = 0;           // index into PolygonSoup::materials
   int group = -1;             // index into PolygonSoup::groups (OBJ o/g name), -1 = none
   int line = 0;               // 1-based line of the face in the source file (0 for binary formats)
+  int origin = -1;            // input face this face was made from (mesh::prepare splits and refines
+                              // faces); -1 = its own index. Scene::face_id and messages use it.
 };
 
 struct PolygonSoup {
   std::string file;                  // source path, for messages
   std::vector<Vec3> positions;       // metres
   std::vector<int> position_lines;   // source line of each position (0 if unknown)
-  std::vector<SoupFace> faces;       // file order: faces[k] is input face k (face_id = k)
+  std::vector<SoupFace> faces;       // file order: faces[k] is input face k (face_id = k), unless
+                                     // faces[k].origin >= 0 names the input face it came from
   std::vector<Material> materials;   // materials[0] is the default material "default"
   std::vector<std::string> groups;   // OBJ object/group names
   long faces_without_material = 0;   // faces that got the default material (reported)
   std::vector<std::string> warnings; // reader-level warnings (ignored statements, unused materials, ...)
+  int input_faces = -1;              // faces in the input file when faces were split or dropped; -1 = faces.size()
 };
 
 // A soup with only the default material (grey, rho = 0.5, no emission).
