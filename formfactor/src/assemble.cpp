@@ -35,7 +35,7 @@ constexpr int kBlock = 64;  // tile edge: 64 x 64 pairs, both matrix blocks stay
 struct Prepared {
   detail::PatchData P;
   std::vector<std::vector<double>> store;
-  std::array<int, 5> tier_base{};  // first index of tier m in the concatenated rule-point arrays
+  std::array<detail::Rule2D, 9> square_rule, triangle_rule;  // reference rules for m = 6, 8
   std::vector<detail::Box> box;
   detail::SoA soa{};
 
@@ -72,27 +72,10 @@ struct Prepared {
     for (int k = 0; k < 6; ++k) soa.M[k] = fill([&](int p) { return P.M[p][k]; });
     soa.fast = fill([&](int p) { return P.kind[p] <= 2 ? 1.0 : 0.0; });
     soa.sym = fill([&](int p) { return P.kind[p] == 1 ? 1.0 : 0.0; });
-    size_t total = 0;
-    for (int m = 2; m <= 4; ++m) {
-      tier_base[m] = int(total);
-      total += P.rule_pts[m].size();
+    for (int m : {6, 8}) {  // larger rules are mapped per pair from cached reference rules (no locking)
+      square_rule[m] = detail::gauss_square(m);
+      triangle_rule[m] = detail::gauss_triangle(m);
     }
-    double* px = column(total);
-    double* py = column(total);
-    double* pz = column(total);
-    double* pw = column(total);
-    for (int m = 2; m <= 4; ++m)
-      for (size_t k = 0; k < P.rule_pts[m].size(); ++k) {
-        const auto& X = P.rule_pts[m][k];
-        px[tier_base[m] + k] = X[0];
-        py[tier_base[m] + k] = X[1];
-        pz[tier_base[m] + k] = X[2];
-        pw[tier_base[m] + k] = X[3];
-      }
-    soa.px = px;
-    soa.py = py;
-    soa.pz = pz;
-    soa.pw = pw;
     soa.eps = P.scene_eps;
     box.resize(n);
     for (int p = 0; p < n; ++p)
@@ -156,7 +139,8 @@ struct Counters {
 
 struct TileBuffers {
   std::vector<std::int8_t> code;
-  std::vector<int> ps, pp, pt, pslot, ss, st, pair_i, pair_j, cs, ct, cslot;
+  std::vector<int> ps, pt, pslot, ss, st, pair_i, pair_j, cs, ct, cslot;
+  std::vector<double> lx, ly, lz, lw;  // outer-rule lanes: point and weight
   std::vector<std::uint8_t> pair_swap;
   std::vector<double> out, val, row, rowj;
   std::vector<int> rest_j;
@@ -229,7 +213,8 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   const double* area = pr.P.area.data();
   auto& F = *F_;
   b.code.resize(kBlock + 16);
-  b.pp.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear(), b.ss.clear(), b.st.clear();
+  b.lx.clear(), b.ly.clear(), b.lz.clear(), b.lw.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear();
+  b.ss.clear(), b.st.clear();
   b.cs.clear(), b.ct.clear(), b.cslot.clear();
   b.pair_i.clear(), b.pair_j.clear(), b.pair_swap.clear();
   long long counts[2] = {0, 0};
@@ -248,25 +233,59 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
         continue;
       }
       const bool swap = code > detail::kCodeSwap;
-      const int m = (code & 7) - 1;
+      const int t = (code & 15) - 1;
       const int src = swap ? j : i, tgt = swap ? i : j;
       const int k = int(b.pair_i.size());
       b.pair_i.push_back(i);
       b.pair_j.push_back(j);
       b.pair_swap.push_back(swap);
-      ++c.by_method[detail::tier_method(m)];
-      if (m == 1) {
+      ++c.by_method[detail::tier_method(t)];
+      if (t == 1) {
         b.cs.push_back(src);
         b.ct.push_back(tgt);
         b.cslot.push_back(k);
         continue;
       }
-      const int p0 = pr.tier_base[m] + pr.P.rule_off[m][src], p1 = pr.tier_base[m] + pr.P.rule_off[m][src + 1];
-      for (int p = p0; p < p1; ++p) {
-        b.pp.push_back(p);
-        b.ps.push_back(src);
-        b.pt.push_back(tgt);
-        b.pslot.push_back(k);
+      const int m = detail::kTierM[t];
+      // Lanes for this pair: resize once, then fill (push_back per field was measurable here).
+      const auto poly = g_.polygon(src);
+      const size_t cnt = m <= 4 ? size_t(pr.P.rule_off[m][src + 1] - pr.P.rule_off[m][src])
+                                : (poly.size() == 3 ? pr.triangle_rule[m].w.size() : pr.square_rule[m].w.size());
+      const size_t base = b.lw.size();
+      for (auto* v : {&b.lx, &b.ly, &b.lz, &b.lw}) v->resize(base + cnt);
+      b.ps.resize(base + cnt, src);
+      b.pt.resize(base + cnt, tgt);
+      b.pslot.resize(base + cnt, k);
+      auto lane = [&](size_t q, const Vec3& X, double w) {
+        b.lx[base + q] = X.x();
+        b.ly[base + q] = X.y();
+        b.lz[base + q] = X.z();
+        b.lw[base + q] = w;
+      };
+      if (m <= 4) {
+        const int p0 = pr.P.rule_off[m][src];
+        for (size_t q = 0; q < cnt; ++q) {
+          const auto& X = pr.P.rule_pts[m][p0 + q];
+          lane(q, Vec3(X[0], X[1], X[2]), X[3]);
+        }
+      } else if (poly.size() == 3) {
+        // Map the reference rule onto the source (a triangle or a convex quad on this path).
+        const detail::Rule2D& rule = pr.triangle_rule[m];
+        for (size_t q = 0; q < cnt; ++q)
+          lane(q, poly[0] + rule.xi[q][0] * (poly[1] - poly[0]) + rule.xi[q][1] * (poly[2] - poly[0]), rule.w[q]);
+      } else {
+        const detail::Rule2D& rule = pr.square_rule[m];
+        const Vec3& ns = pr.P.nrm[src];
+        double total = 0;
+        for (size_t q = 0; q < cnt; ++q) {
+          const double u = rule.xi[q][0], v = rule.xi[q][1];
+          const Vec3 du = (1 - v) * (poly[1] - poly[0]) + v * (poly[2] - poly[3]);
+          const Vec3 dv = (1 - u) * (poly[3] - poly[0]) + u * (poly[2] - poly[1]);
+          const double w = rule.w[q] * du.cross(dv).dot(ns);
+          lane(q, (1 - u) * (1 - v) * poly[0] + u * (1 - v) * poly[1] + u * v * poly[2] + (1 - u) * v * poly[3], w);
+          total += w;
+        }
+        for (size_t q = 0; q < cnt; ++q) b.lw[base + q] /= total;
       }
     }
   }
@@ -281,10 +300,11 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
       K.eval_centroid(s, b.cs.data(), b.ct.data(), int(b.cs.size()), b.out.data());
       for (size_t k = 0; k < b.cs.size(); ++k) b.val[b.cslot[k]] = b.out[k];
     }
-    if (!b.pp.empty()) {
-      b.out.resize(b.pp.size());
-      K.eval_points(s, b.pp.data(), b.ps.data(), b.pt.data(), int(b.pp.size()), b.out.data());
-      for (size_t k = 0; k < b.pp.size(); ++k) b.val[b.pslot[k]] += b.out[k];
+    if (!b.lw.empty()) {
+      b.out.resize(b.lw.size());
+      K.eval_points(s, b.lx.data(), b.ly.data(), b.lz.data(), b.lw.data(), b.ps.data(), b.pt.data(), int(b.lw.size()),
+                    b.out.data());
+      for (size_t k = 0; k < b.lw.size(); ++k) b.val[b.pslot[k]] += b.out[k];
     }
     for (size_t k = 0; k < b.pair_i.size(); ++k) {
       const int i = b.pair_i[k], j = b.pair_j[k];

@@ -13,21 +13,24 @@ struct SoA {
   const double* M[6];  // second moments / area: xx yy zz xy xz yz
   const double* fast;  // 1 for triangles and convex quads, 0 for polygons that need the scalar path
   const double* sym;   // 1 for parallelograms (centrally symmetric)
-  const double *px, *py, *pz, *pw;  // outer-rule points (all tiers concatenated), weights sum to 1 per rule
   double eps;          // plane classification tolerance
 };
 constexpr int kBatchPad = 16;
 
 // Pair codes written by classify(): 0 = culled by orientation, 1 + t = rule tier t (0 far field, 1 centroid +
-// Hessian, 2..4 m x m Gauss) with i as source, plus kCodeSwap when j is the source (smaller area),
-// kCodeSlow = scalar path (near, straddling or general polygon).
-enum : std::int8_t { kCodeCulled = 0, kCodeSlow = 6, kCodeSwap = 8 };
+// Hessian, 2..6 m x m Gauss with m = kTierM[t]) with i as source, plus kCodeSwap when j is the source
+// (smaller area), kCodeSlow = scalar path (near, straddling or general polygon).
+enum : std::int8_t { kCodeCulled = 0, kCodeSlow = 15, kCodeSwap = 16 };
+constexpr int kTiers = 7;
+constexpr int kTierM[kTiers] = {0, 1, 2, 3, 4, 6, 8};  // Gauss points per direction for tiers 2..6
 
 // A-priori error model constants: 4 x the worst ratio |error| / (S r^p) seen on 40,000 random pairs of
-// triangles, parallelograms and convex quads (target 1-3x the source, r = rho_s/d from 0.004 to 0.4, grazing
-// angles included); index [tier][source centrally symmetric]. See tier_error() in internal.hpp.
-constexpr double kTierConstant[5][2] = {{0.8, 1.3}, {0.6, 2.5}, {0.4, 0.5}, {0.06, 0.08}, {0.006, 0.011}};
-constexpr double kMaxAreaRatio = 0.4;  // rho_s / d above this: always the scalar path (contour)
+// triangles, parallelograms and convex quads (target 1-3x the source, r = rho_s/d from 0.004 to 0.6, grazing
+// angles included); index [tier][source centrally symmetric]. For 6x6 and 8x8 Gauss, whose errors mostly sat
+// at rounding level, 7x and 70x the worst measurable ratio. See tier_error() in internal.hpp.
+constexpr double kTierConstant[kTiers][2] = {{0.8, 1.3}, {0.6, 2.5}, {0.4, 0.5},   {0.07, 0.09},
+                                             {0.008, 0.012}, {1e-4, 1e-4}, {1e-6, 1e-6}};
+constexpr double kMaxAreaRatio = 0.5;  // rho_s / d above this: always the scalar path (contour)
 
 struct BatchKernels {
   const char* name;
@@ -37,8 +40,10 @@ struct BatchKernels {
   // entries past j1 in the SoA (padding).
   int (*classify)(const SoA& s, int i, int j0, int j1, double tol, double* val, std::int8_t* rest_code, int* rest_j,
                   long long* counts);
-  // out[k] = pw[p] * F(x_p -> quad t) for p = pidx[k], source normal of patch sidx[k], t = tidx[k].
-  void (*eval_points)(const SoA& s, const int* pidx, const int* sidx, const int* tidx, int count, double* out);
+  // out[k] = w[k] * F(x_k -> quad t) for the point x_k = (x[k], y[k], z[k]) with the normal of patch sidx[k],
+  // t = tidx[k] (outer-rule points with their weights).
+  void (*eval_points)(const SoA& s, const double* x, const double* y, const double* z, const double* w,
+                      const int* sidx, const int* tidx, int count, double* out);
   // out[k] = F(c_s -> quad t) + Hessian correction (tier 1), s = sidx[k], t = tidx[k].
   void (*eval_centroid)(const SoA& s, const int* sidx, const int* tidx, int count, double* out);
   // F(j, i) = F(i, j) A_i / A_j for i in [i0, i1), j in [j0, j1) (j > i if diag) in a row-major matrix with

@@ -66,11 +66,11 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier = 4);
 void outer_rule(std::span<const Vec3> poly, std::span<const std::array<int, 3>> tris, int m,
                 std::vector<std::array<double, 4>>& out);
 
-// A-priori error model: estimate of |F_ij error| for tier m (0 = far field, 1 = centroid + Hessian
-// correction, 2..4 = m x m Gauss) given S = A_j / (pi d^2), r = rho_i / d, q = rho_j / d, with d the distance
-// from c_i to the bounding sphere of P_j. Exponents: the rule's order, 4 for tiers 0/1 and 2m for Gauss,
-// one less for a source (or, tier 0, target) that is not centrally symmetric.
-double tier_error(int m, double S, double r, double q, bool source_symmetric, bool target_symmetric);
+// A-priori error model: estimate of |F_ij error| for tier t (0 = far field, 1 = centroid + Hessian
+// correction, 2..6 = m x m Gauss, m = kTierM[t]) given S = A_j / (pi d^2), r = rho_i / d, q = rho_j / d, with
+// d the distance from c_i to the bounding sphere of P_j. Exponents: the rule's order, 4 for tiers 0/1 and 2m
+// for Gauss, one less for a source (or, tier 0, target) that is not centrally symmetric.
+double tier_error(int t, double S, double r, double q, bool source_symmetric, bool target_symmetric);
 
 // Centroid value plus second-order (Hessian) correction; see pair.cpp.
 double hessian_correction(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& Mi, const Vec3& cj,
@@ -86,9 +86,11 @@ struct PairEval {
   int method = 0;  // index into kMethodNames
   long long evaluations = 0;
 };
-enum Method { kCulled = 0, kFarField, kCentroidHessian, kGauss4, kGauss9, kGauss16, kContour, kMethodCount };
+enum Method {
+  kCulled = 0, kFarField, kCentroidHessian, kGauss4, kGauss9, kGauss16, kGauss36, kGauss64, kContour, kMethodCount
+};
 extern const char* const kMethodNames[kMethodCount];
-int tier_method(int m);
+int tier_method(int t);
 PairEval pair_scalar(const PatchData& P, int src, int tgt, double tol);
 
 // Signed distances of polygon corners to a plane: returns (min, max).

@@ -8,10 +8,10 @@
 namespace lambert::formfactor {
 namespace detail {
 
-const char* const kMethodNames[kMethodCount] = {"orientation_culled", "far_field", "centroid_hessian", "gauss4",
-                                                "gauss9",             "gauss16",   "contour"};
+const char* const kMethodNames[kMethodCount] = {"orientation_culled", "far_field", "centroid_hessian",
+                                                "gauss4",  "gauss9",   "gauss16",   "gauss36", "gauss64", "contour"};
 
-int tier_method(int m) { return kFarField + m; }
+int tier_method(int t) { return kFarField + t; }
 
 namespace {
 
@@ -130,16 +130,14 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
   return P;
 }
 
-double tier_error(int m, double S, double r, double q, bool source_symmetric, bool target_symmetric) {
-  const double r2 = r * r, q2 = q * q;
-  if (m == 0)
-    return kTierConstant[0][source_symmetric ? 1 : 0] * S *
-           ((source_symmetric ? r2 * r2 : r2 * r) + (target_symmetric ? q2 * q2 : q2 * q) + r2 * q2);
-  const int p = (m == 1 ? 4 : 2 * m) - (source_symmetric ? 0 : 1);
+double tier_error(int t, double S, double r, double q, bool source_symmetric, bool target_symmetric) {
+  const double r2 = r * r, q2 = q * q, C = kTierConstant[t][source_symmetric ? 1 : 0];
+  if (t == 0) return C * S * ((source_symmetric ? r2 * r2 : r2 * r) + (target_symmetric ? q2 * q2 : q2 * q) + r2 * q2);
+  const int p = (t == 1 ? 4 : 2 * kTierM[t]) - (source_symmetric ? 0 : 1);
   double rp = 1;
   for (int k = 0; k < p; ++k) rp *= r;
-  if (m == 1) rp += r2 * q2;  // the Hessian is taken at the target's centroid
-  return kTierConstant[m][source_symmetric ? 1 : 0] * S * rp;
+  if (t == 1) rp += r2 * q2;  // the Hessian is taken at the target's centroid
+  return C * S * rp;
 }
 
 double hessian_correction(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& M, const Vec3& cj,
@@ -193,26 +191,37 @@ PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
     if (d > 0 && P.rho[s] <= kMaxAreaRatio * d) {
       const double S = P.area[t] / (kPi * d * d), r = P.rho[s] / d, q = P.rho[t] / d;
       const bool sym = P.kind[s] == 1, symt = P.kind[t] == 1;
-      for (int m = 0; m <= 4; ++m) {
-        const double est = tier_error(m, S, r, q, sym, symt);
+      for (int tier = 0; tier < kTiers; ++tier) {
+        const double est = tier_error(tier, S, r, q, sym, symt);
         if (est > tol) continue;
+        const int m = kTierM[tier];
         double F = 0;
-        if (m == 0) {
+        if (tier == 0) {
           F = far_field(P.c[s], P.nrm[s], P.M[s], P.c[t], P.nrm[t], P.M[t], P.area[t]);
           out.evaluations = 1;
-        } else if (m == 1) {
+        } else if (tier == 1) {
           F = contour_sum(P.c[s], P.nrm[s], Pt) + hessian_correction(P.c[s], P.nrm[s], P.M[s], P.c[t], P.nrm[t], P.area[t]);
           out.evaluations = 1;
-        } else {
+        } else if (m <= 4) {
           for (int k = P.rule_off[m][s]; k < P.rule_off[m][s + 1]; ++k) {
             const auto& X = P.rule_pts[m][k];
             F += X[3] * contour_sum(Vec3(X[0], X[1], X[2]), P.nrm[s], Pt);
           }
           out.evaluations = P.rule_off[m][s + 1] - P.rule_off[m][s];
+        } else {
+          thread_local std::vector<std::array<double, 4>> pts;
+          thread_local std::vector<std::array<int, 3>> local;
+          pts.clear();
+          local.clear();
+          for (int k = g.triangle_offsets[s]; k < g.triangle_offsets[s + 1]; ++k)
+            local.push_back({g.triangles[k][0] - g.offsets[s], g.triangles[k][1] - g.offsets[s], g.triangles[k][2] - g.offsets[s]});
+          outer_rule(Ps, local, m, pts);
+          for (const auto& X : pts) F += X[3] * contour_sum(Vec3(X[0], X[1], X[2]), P.nrm[s], Pt);
+          out.evaluations = (long long)pts.size();
         }
         out.F = F;
         out.error = est;
-        out.method = tier_method(m);
+        out.method = tier_method(tier);
         return out;
       }
     }

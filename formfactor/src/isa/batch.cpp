@@ -109,19 +109,19 @@ inline vd point_quad(vd px, vd py, vd pz, vd nx, vd ny, vd nz, const Quad& q) {
   return vabs(sum) * (1 / (2 * kPi));
 }
 
-void eval_points(const SoA& s, const int* pidx, const int* sidx, const int* tidx, int count, double* out) {
+void eval_points(const SoA& s, const double* x, const double* y, const double* z, const double* w, const int* sidx,
+                 const int* tidx, int count, double* out) {
   for (int b = 0; b < count; b += W) {
-    int P[W], S[W], T[W];
+    int S[W], T[W], L[W];
     for (int k = 0; k < W; ++k) {
-      const int l = b + k < count ? b + k : count - 1;  // pad the last batch by repeating a lane
-      P[k] = pidx[l];
-      S[k] = sidx[l];
-      T[k] = tidx[l];
+      L[k] = b + k < count ? b + k : count - 1;  // pad the last batch by repeating a lane
+      S[k] = sidx[L[k]];
+      T[k] = tidx[L[k]];
     }
     const Quad q = gather_quad(s, T);
-    const vd F = point_quad(gather(s.px, P), gather(s.py, P), gather(s.pz, P), gather(s.nx, S), gather(s.ny, S),
+    const vd F = point_quad(gather(x, L), gather(y, L), gather(z, L), gather(s.nx, S), gather(s.ny, S),
                             gather(s.nz, S), q) *
-                 gather(s.pw, P);
+                 gather(w, L);
     for (int k = 0; k < W && b + k < count; ++k) out[b + k] = F[k];
   }
 }
@@ -226,15 +226,23 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, std
     const vl live = ~(culled | straddle | near) & fast & valid;
     const vl t0 = live & (e0 <= tol);
     vd tier = splat(0);
-    if (any(live & ~t0)) {  // only then the costlier rules' estimates
+    if (any(live & ~t0)) {  // only then the costlier rules' estimates (exponents 2m, or 2m - 1)
+      const vd r8 = r4 * r4;
       const vd e1 = C(1) * S * (rp + r2 * q2);
       const vd e2 = C(2) * S * rp;
       const vd e3 = C(3) * S * rp * r2;
       const vd e4 = C(4) * S * rp * r4;
-      tier = sel(e0 <= tol, splat(0),
-                 sel(e1 <= tol, splat(1), sel(e2 <= tol, splat(2), sel(e3 <= tol, splat(3), sel(e4 <= tol, splat(4), splat(5))))));
+      const vd e5 = C(5) * S * rp * r8;
+      const vd e6 = C(6) * S * rp * r8 * r4;
+      tier = sel(e6 <= tol, splat(6), splat(7));
+      tier = sel(e5 <= tol, splat(5), tier);
+      tier = sel(e4 <= tol, splat(4), tier);
+      tier = sel(e3 <= tol, splat(3), tier);
+      tier = sel(e2 <= tol, splat(2), tier);
+      tier = sel(e1 <= tol, splat(1), tier);
+      tier = sel(e0 <= tol, splat(0), tier);
     }
-    const vl slow = (~fast) | straddle | near | (tier > 4.5);
+    const vl slow = (~fast) | straddle | near | (tier > 6.5);
     const vd cd = sel(~fast, splat(kCodeSlow),
                       sel(culled, splat(kCodeCulled),
                           sel(slow, splat(kCodeSlow), tier + 1 + sel(swap, splat(kCodeSwap), splat(0)))));
