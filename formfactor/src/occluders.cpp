@@ -4,6 +4,7 @@
 #include <CGAL/convex_hull_3.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "lambert/formfactor/visibility.hpp"
@@ -16,12 +17,19 @@ std::vector<int> potential_occluders(const mesh::PatchGeometry& g) {
   std::vector<int> out;
   if (g.size() == 0) return out;
   double scale = 0;
-  std::vector<Point> pts;
-  pts.reserve(g.points.size());
+  // Corners shared by neighbouring patches appear once per patch: deduplicate (exactly) before the hull,
+  // duplicates only cost CGAL exact-arithmetic fallbacks.
+  std::vector<std::array<double, 3>> uniq;
+  uniq.reserve(g.points.size());
   for (const Vec3& p : g.points) {
-    pts.emplace_back(p.x(), p.y(), p.z());
+    uniq.push_back({p.x(), p.y(), p.z()});
     scale = std::max(scale, p.cwiseAbs().maxCoeff());
   }
+  std::sort(uniq.begin(), uniq.end());
+  uniq.erase(std::unique(uniq.begin(), uniq.end()), uniq.end());
+  std::vector<Point> pts;
+  pts.reserve(uniq.size());
+  for (const auto& p : uniq) pts.emplace_back(p[0], p[1], p[2]);
   const double eps = 1e-10 * std::max(scale, 1e-300);
   // The minimum of a linear function over the corners is attained on the convex hull. If the corners span
   // less than 3 dimensions every patch is coplanar with every corner: nothing is strictly behind anything.
