@@ -457,6 +457,9 @@ def check(vtu, obj):
         mean = s["L_area"] / s["area"] if s["area"] else 0.0
         s["L_mean"] = mean
         print("%-9s %7d %9.2f %12.6g %12.6g %12.6g" % (room, s["patches"], s["area"], mean, s["L_max"], s["H_max"]))
+    missing = [r for r in ROOMS if r not in rooms]
+    if missing:
+        raise SystemExit("%s has no patches of room(s) %s: not a solution of the floor plan" % (vtu, ", ".join(missing)))
     lit = [r for r in ROOMS if r != CLOSED_ROOM]
     dimmest = min(rooms[r]["L_mean"] for r in lit)
     leak = rooms[CLOSED_ROOM]["L_max"]
