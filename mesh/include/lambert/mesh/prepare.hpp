@@ -1,0 +1,70 @@
+#pragma once
+// Mesh preparation between the reader and build_scene: repairs what can be repaired, reports what
+// leaks light, and refines large faces to a patch size. Every change is counted in the Report.
+//
+//   Report prep;
+//   PolygonSoup ready = prepare(soup, options, prep);
+//   Scene scene = build_scene(ready);   // or prepare_and_build(), which also merges the reports
+//
+// Repair (options.repair), in this order:
+//  1. weld: used vertices closer than weld_tolerance * (bounding-box diagonal) become one (the lowest
+//     index keeps its coordinates)                                            "vertices_merged"
+//  2. repeated corners: consecutive repeats are dropped, a face that touches itself at a corner
+//     ("pinched") is split into its loops            "repeated_corners_removed", "pinched_faces_split"
+//     faces left with < 3 corners or zero area (build_scene's test) are removed
+//                                                                      "degenerate_faces_removed"
+//  3. orientation, per component of faces joined by manifold edges (two faces): made consistent;
+//     a closed component (a shell) faces inward when it lies inside an even number of other shells
+//     (the outermost room, seen from inside) and outward when odd (a block in the room); an open
+//     component keeps the orientation of the majority of its faces (ties: its first face)
+//                                                   "faces_reoriented", "non_orientable_components"
+// Detection (reported, never changed; also without repair, on the raw faces, since it changes
+// nothing and tells where light can leak):
+//  4. faces whose interiors cross or overlap (not where they merely touch along an edge or at a
+//     corner, shared or not, e.g. a block standing on a floor); one count per pair of input faces
+//                                                                             "self_intersections"
+//  5. T-junctions (cracks): a vertex within the tolerance of the interior of an open edge (one face)
+//     that it is not a corner of, itself ending an open edge along that line (a wall's bottom edge
+//     split where the floor's edge is not). A vertex on an edge two faces share is contact, not a
+//     crack (a table leg standing on a floor grid line); one count per (vertex, edge) "t_junctions"
+// Without repair nothing is changed (detection still runs); build_scene then reports or rejects the
+// raw problems itself. Non-planar faces are left to build_scene (it triangulates and reports them).
+//
+// Refinement (options.max_edge > 0, with or without repair): every edge is split into
+// n = ceil(length / max_edge) equal pieces, the same for all faces sharing it, so refined neighbours
+// still share every vertex (no new T-junctions; important for vertex output and for the mesh's own
+// connectivity). Planar convex quads (the common architectural case) become a bilinear n x m grid
+// of quads: exact tiling, planar pieces, half the patches of triangles; opposite edges of such a
+// quad get the same n (the largest of the two, and so on along strips of quads). Triangles whose
+// three edges get the same n are split uniformly into n^2 similar triangles. Other faces (triangles
+// with unequal n, non-convex or non-planar polygons, n-gons) are triangulated: the split boundary
+// plus an equilateral lattice of spacing max_edge inside, constrained Delaunay (CGAL), then longest-
+// edge bisection (Rivara) of any interior edge still longer than max_edge. Non-planar faces are first
+// triangulated as build_scene would. A face is refined when one of its edges gets n > 1, or when its
+// diameter exceeds 2 * max_edge (n-gons with short edges). Pieces keep material, group, line and
+// origin; they take the place of their face (face order is kept). Every output edge is
+// <= max_edge * (1 + 1e-12); total area is preserved to round-off.   "faces_refined", "patches_added"
+//
+// Each step records its count (0 too) in report.counts; a warning names up to 5 input faces.
+#include "lambert/mesh/scene.hpp"
+#include "lambert/mesh/soup.hpp"
+
+namespace lambert::mesh {
+
+struct PrepareOptions {
+  bool repair = true;
+  double max_edge = 0;  // metres; 0 = no refinement; must be >= 0 and finite
+  // Weld, T-junction and touching distance, relative to the bounding-box diagonal of the used
+  // vertices. 1e-6 (5 um in a 5 m room): above the rounding of files written with 6 digits, far below
+  // any modelled detail.
+  double weld_tolerance = 1e-6;
+};
+
+// Throws InputError (naming file, line and face) for corners out of range and non-finite positions
+// used by a face, or an invalid option. Input faces with origin >= 0 keep that origin.
+PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Report& report);
+
+// prepare + build_scene; the scene's report starts with the preparation's counts and warnings.
+Scene prepare_and_build(const PolygonSoup& soup, const PrepareOptions& options, const BuildOptions& build = {});
+
+}  // namespace lambert::mesh

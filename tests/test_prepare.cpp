@@ -1,0 +1,400 @@
+// mesh::prepare repairs (weld, degenerate faces, orientation) and detection (self-intersections,
+// T-junctions), each on a small crafted mesh with known before/after counts.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "lambert/io/readers.hpp"
+#include "lambert/mesh/prepare.hpp"
+#include "lambert/mesh/shapes.hpp"
+
+using namespace lambert;
+using namespace lambert::mesh;
+
+namespace {
+
+// A soup as an OBJ reader would produce it: positions on lines 1..n, face k on line 100 + k.
+PolygonSoup soup_of(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces) {
+  PolygonSoup s = make_empty_soup("test.obj");
+  for (size_t i = 0; i < positions.size(); ++i) {
+    s.positions.push_back(positions[i]);
+    s.position_lines.push_back(static_cast<int>(i) + 1);
+  }
+  for (size_t k = 0; k < faces.size(); ++k) {
+    SoupFace f;
+    f.vertices = faces[k];
+    f.line = 100 + static_cast<int>(k);
+    s.faces.push_back(f);
+  }
+  return s;
+}
+
+// Indexed soup from polygons, identical coordinates sharing one vertex.
+PolygonSoup soup_from(const shapes::Polygons& polys) {
+  std::map<std::array<double, 3>, int> index;
+  std::vector<Vec3> pos;
+  std::vector<std::vector<int>> faces;
+  for (const auto& poly : polys) {
+    faces.emplace_back();
+    for (const Vec3& p : poly) {
+      const auto [it, fresh] = index.try_emplace({p.x(), p.y(), p.z()}, static_cast<int>(pos.size()));
+      if (fresh) pos.push_back(p);
+      faces.back().push_back(it->second);
+    }
+  }
+  return soup_of(pos, faces);
+}
+
+std::vector<Vec3> corners(const PolygonSoup& s, const SoupFace& f) {
+  std::vector<Vec3> c;
+  for (int v : f.vertices) c.push_back(s.positions[v]);
+  return c;
+}
+
+Vec3 centroid(const std::vector<Vec3>& c) {
+  Vec3 m = Vec3::Zero();
+  for (const Vec3& p : c) m += p;
+  return m / double(c.size());
+}
+
+// Signed volume enclosed by the faces whose origin is in `ids` (> 0: normals point outward).
+double signed_volume(const PolygonSoup& s, const std::set<int>& ids) {
+  double v = 0;
+  for (size_t k = 0; k < s.faces.size(); ++k) {
+    const int origin = s.faces[k].origin >= 0 ? s.faces[k].origin : static_cast<int>(k);
+    if (!ids.count(origin)) continue;
+    const auto c = corners(s, s.faces[k]);
+    for (size_t t = 1; t + 1 < c.size(); ++t) v += c[0].dot(c[t].cross(c[t + 1])) / 6;
+  }
+  return v;
+}
+
+int used_vertices(const PolygonSoup& s) {
+  std::set<int> used;
+  for (const auto& f : s.faces) used.insert(f.vertices.begin(), f.vertices.end());
+  return static_cast<int>(used.size());
+}
+
+bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+std::string warning_with(const Report& r, const std::string& part) {
+  for (const auto& w : r.warnings)
+    if (has(w, part)) return w;
+  return "";
+}
+
+long count(const Report& r, const std::string& key) {
+  const auto it = r.counts.find(key);
+  return it == r.counts.end() ? -1 : it->second;
+}
+
+std::string all_warnings(const Report& r) {
+  std::string s;
+  for (const auto& w : r.warnings) s += "\n  " + w;
+  return s;
+}
+
+}  // namespace
+
+// ---- weld ------------------------------------------------------------------------------------------
+
+TEST(PrepareWeld, WeldMergesDuplicateVertices) {
+  // Two unit squares side by side; the right one has its own copies of the shared edge's vertices:
+  // vertex 4 exactly equal to 1, vertex 5 off by 1e-9 m (within 1e-6 x diagonal 2.24 m). Vertex 8
+  // of a sliver triangle on the top edge lies 1e-4 m from vertex 3: farther, not merged.
+  const PolygonSoup s = soup_of({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},      // left square
+                                 {1, 0, 0}, {1, 1 + 1e-9, 0}, {2, 0, 0}, {2, 1, 0},  // right copies
+                                 {0, 1 + 1e-4, 0}},
+                                {{0, 1, 2, 3}, {4, 6, 7, 5}, {3, 2, 8}});
+  Report r;
+  const PolygonSoup out = prepare(s, {}, r);
+  EXPECT_EQ(used_vertices(s), 9);
+  EXPECT_EQ(used_vertices(out), 7) << all_warnings(r);  // 4 -> 1 and 5 -> 2; 8 stays apart from 3
+  EXPECT_EQ(count(r, "vertices_merged"), 2);
+  EXPECT_EQ(out.faces[1].vertices, (std::vector<int>{1, 6, 7, 2}));
+  EXPECT_EQ(out.positions[2], s.positions[2]) << "the lowest index keeps its coordinates";
+  EXPECT_TRUE(has(warning_with(r, "merged"), "vertex 4")) << all_warnings(r);
+  // build_scene then sees one connected surface: no duplicates, the shared edge is interior.
+  const Scene scene = build_scene(out);
+  EXPECT_EQ(scene.report.counts.count("duplicate_vertices"), 0u) << all_warnings(scene.report);
+  int boundary_edges = 0;
+  for (auto e : scene.mesh.edges()) boundary_edges += scene.mesh.is_boundary(e);
+  EXPECT_EQ(boundary_edges, 7);  // 0-1, 3-0, 1-6, 6-7, 7-2 and the sliver's 2-8, 8-3
+}
+
+TEST(PrepareWeld, ZeroToleranceMergesExactDuplicatesOnly) {
+  const PolygonSoup s = soup_of({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {1, 0, 0}, {1, 1 + 1e-12, 0}, {2, 0, 0}},
+                                {{0, 1, 2}, {3, 5, 4}});
+  PrepareOptions o;
+  o.weld_tolerance = 0;
+  Report r;
+  const PolygonSoup out = prepare(s, o, r);
+  EXPECT_EQ(count(r, "vertices_merged"), 1);
+  EXPECT_EQ(out.faces[1].vertices, (std::vector<int>{1, 5, 4}));
+}
+
+// ---- degenerate faces ------------------------------------------------------------------------------
+
+TEST(PrepareClean, DegenerateFacesAreRemovedAndCounted) {
+  std::vector<Vec3> p = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {2, 0, 0}, {3, 0, 0}, {1, 1e-12, 0}, {2, 1, 0}};
+  std::vector<std::vector<int>> f = {
+      {0, 1, 2, 3},  // 0 valid
+      {0, 1, 6},     // 1 corner 6 welds onto 1: 2 distinct corners left
+      {1, 4, 5},     // 2 collinear: zero area
+      {2, 3},        // 3 two corners
+      {1, 4, 2},     // 4 valid
+      {2, 4, 4, 7},  // 5 repeated corner: becomes triangle 2 4 7
+  };
+  for (int i = 0; i < 5; ++i) f.push_back({4, 5, 4});  // 6..10 spikes
+  const PolygonSoup s = soup_of(p, f);
+  Report r;
+  const PolygonSoup out = prepare(s, {}, r);
+  ASSERT_EQ(out.faces.size(), 3u) << all_warnings(r);
+  EXPECT_EQ(out.faces[0].origin, 0);
+  EXPECT_EQ(out.faces[1].origin, 4);
+  EXPECT_EQ(out.faces[2].origin, 5);
+  EXPECT_EQ(out.faces[2].vertices, (std::vector<int>{2, 4, 7}));
+  EXPECT_EQ(out.input_faces, 11);
+  EXPECT_EQ(count(r, "degenerate_faces_removed"), 8);
+  EXPECT_EQ(count(r, "repeated_corners_removed"), 1);
+  const std::string w = warning_with(r, "degenerate");
+  EXPECT_TRUE(has(w, "1, 2, 3, 6, 7 and 3 more")) << w;
+  // build_scene accepts the result and names input faces.
+  const Scene scene = build_scene(out);
+  EXPECT_EQ(scene.face_id, (std::vector<int>{0, 4, 5}));
+  EXPECT_EQ(scene.input_faces, 11);
+  // Without repair, build_scene rejects the raw soup, naming the first bad input face.
+  Report raw;
+  PrepareOptions no;
+  no.repair = false;
+  try {
+    build_scene(prepare(s, no, raw));
+    ADD_FAILURE() << "the raw soup was accepted";
+  } catch (const InputError& e) {
+    EXPECT_TRUE(has(e.what(), "face 3")) << e.what();
+  }
+}
+
+TEST(PrepareClean, PinchedFaceIsSplitIntoItsLoopsKeepingArea) {
+  // Two triangles touching at vertex 0, given as one polygon 0 1 2 0 3 4 (a bow tie through a corner).
+  const PolygonSoup s = soup_of({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {-1, 0, 0}, {-1, -1, 0}}, {{0, 1, 2, 0, 3, 4}});
+  Report r;
+  const PolygonSoup out = prepare(s, {}, r);
+  ASSERT_EQ(out.faces.size(), 2u) << all_warnings(r);
+  EXPECT_EQ(count(r, "pinched_faces_split"), 1);
+  EXPECT_EQ(out.faces[0].origin, 0);
+  EXPECT_EQ(out.faces[1].origin, 0);
+  const Scene scene = build_scene(out);
+  // Both unit right triangles (area 0.5 each) survive; exact in floating point.
+  EXPECT_DOUBLE_EQ(scene.geometry.area[0] + scene.geometry.area[1], 1.0);
+}
+
+// ---- orientation -----------------------------------------------------------------------------------
+
+TEST(PrepareOrient, FlippedFaceIsReoriented) {
+  // Unit cube facing inward (a closed room), face 3 flipped.
+  PolygonSoup s = soup_from(shapes::box(Vec3::Zero(), Vec3::Ones(), 1, true));
+  std::reverse(s.faces[3].vertices.begin(), s.faces[3].vertices.end());
+  Report r;
+  const PolygonSoup out = prepare(s, {}, r);
+  EXPECT_EQ(count(r, "faces_reoriented"), 1) << all_warnings(r);
+  EXPECT_TRUE(has(warning_with(r, "reoriented"), "input face 3")) << all_warnings(r);
+  // Tolerance: the volume of a unit cube from exact corner coordinates is exact.
+  EXPECT_DOUBLE_EQ(signed_volume(out, {0, 1, 2, 3, 4, 5}), -1.0);
+  const Scene scene = build_scene(out);
+  EXPECT_EQ(scene.report.counts.count("inconsistent_orientation_edges"), 0u) << all_warnings(scene.report);
+}
+
+TEST(PrepareOrient, ClosedRoomFacesInwardAndNestedBlockFacesOutward) {
+  // Room [0,4]^3 given outward with one face flipped, block [1,3]^3 inside it given inward, and a
+  // cavity [1.5,2.5]^3 inside the block given outward; faces interleaved and out of order.
+  const auto room = shapes::box(Vec3::Zero(), Vec3::Constant(4), 1, false);
+  const auto block = shapes::box(Vec3::Constant(1), Vec3::Constant(3), 1, true);
+  const auto cavity = shapes::box(Vec3::Constant(1.5), Vec3::Constant(2.5), 1, false);
+  shapes::Polygons polys;
+  std::vector<int> shell;  // 0 room, 1 block, 2 cavity per input face
+  for (int i = 5; i >= 0; --i) {
+    polys.push_back(block[i]);
+    shell.push_back(1);
+    polys.push_back(room[(i * 5) % 6]);
+    shell.push_back(0);
+    polys.push_back(cavity[(i + 3) % 6]);
+    shell.push_back(2);
+  }
+  std::reverse(polys[1].begin(), polys[1].end());  // a room face: now already inward
+  PolygonSoup s = soup_from(polys);
+  Report r;
+  const PolygonSoup out = prepare(s, {}, r);
+  EXPECT_EQ(count(r, "faces_reoriented"), 5 + 6 + 6) << all_warnings(r);
+  std::set<int> ids[3];
+  for (int k = 0; k < 18; ++k) ids[shell[k]].insert(k);
+  // Exact: integer and half-integer corner coordinates.
+  EXPECT_DOUBLE_EQ(signed_volume(out, ids[0]), -64.0);
+  EXPECT_DOUBLE_EQ(signed_volume(out, ids[1]), 8.0);
+  EXPECT_DOUBLE_EQ(signed_volume(out, ids[2]), -1.0);
+  // Every face's normal points into the room / out of the block / into the cavity (centres all 2).
+  const double sign[3] = {1, -1, 1};  // + : normal towards the centre
+  for (size_t k = 0; k < out.faces.size(); ++k) {
+    const auto c = corners(out, out.faces[k]);
+    const double towards = newell_normal(c).dot(Vec3::Constant(2) - centroid(c));
+    EXPECT_GT(sign[shell[out.faces[k].origin]] * towards, 0) << "input face " << out.faces[k].origin;
+  }
+  EXPECT_EQ(count(r, "self_intersections"), 0) << all_warnings(r);
+}
+
+TEST(PrepareOrient, ClosedBlockRestingOnTheFloorIsNestedAndItsOverlapReported) {
+  // Room [0,4]^3 given outward, a closed block [1,2]x[0,1]x[1,2] standing on its floor given inward:
+  // samples on the block's bottom face lie on the room's floor, the others decide.
+  const auto room = shapes::box(Vec3::Zero(), Vec3::Constant(4), 1, false);
+  const auto block = shapes::box(Vec3(1, 0, 1), Vec3(2, 1, 2), 1, true);
+  shapes::Polygons polys = room;
+  polys.insert(polys.end(), block.begin(), block.end());
+  Report r;
+  const PolygonSoup out = prepare(soup_from(polys), {}, r);
+  EXPECT_EQ(count(r, "faces_reoriented"), 12) << all_warnings(r);
+  EXPECT_DOUBLE_EQ(signed_volume(out, {0, 1, 2, 3, 4, 5}), -64.0);
+  EXPECT_DOUBLE_EQ(signed_volume(out, {6, 7, 8, 9, 10, 11}), 1.0);
+  // The block's bottom (face 6 + 2 = 8, -y) lies on the room's floor (face 2): coplanar overlap.
+  EXPECT_EQ(count(r, "self_intersections"), 1) << all_warnings(r);
+  EXPECT_TRUE(has(warning_with(r, "overlap"), "(2, 8)")) << all_warnings(r);
+}
+
+TEST(PrepareOrient, OpenBoxKeepsMajorityOrientation) {
+  // Unit box without its top (+y, index 3): 5 faces. Flip 2 of them, then 3 of them.
+  auto box = shapes::box(Vec3::Zero(), Vec3::Ones(), 1, true);
+  box.erase(box.begin() + 3);
+  for (int flips : {2, 3}) {
+    PolygonSoup s = soup_from(box);
+    for (int k = 0; k < flips; ++k) std::reverse(s.faces[k].vertices.begin(), s.faces[k].vertices.end());
+    Report r;
+    const PolygonSoup out = prepare(s, {}, r);
+    EXPECT_EQ(count(r, "faces_reoriented"), 2) << flips << " flipped" << all_warnings(r);
+    // The majority was inward with 2 flips, outward with 3: each face's normal vs. the box centre.
+    const double want = flips == 2 ? 1 : -1;
+    for (size_t k = 0; k < out.faces.size(); ++k) {
+      const auto c = corners(out, out.faces[k]);
+      EXPECT_GT(want * newell_normal(c).dot(Vec3::Constant(0.5) - centroid(c)), 0) << "face " << k << ", " << flips;
+    }
+  }
+}
+
+// ---- detection -------------------------------------------------------------------------------------
+
+TEST(PrepareDetect, SelfIntersectionIsReportedWithFaceIds) {
+  // Floor y = 0 (face 0); wall A in x = 0 (face 1), wall B in z = 0 (face 2) crossing A through its
+  // middle; wall C (face 3) meets A at its edge z = 1 (shared vertices), wall D (face 4) touches A's
+  // face along its own edge without shared vertices. Both stand on the floor. Only A x B cross.
+  const PolygonSoup s = soup_of(
+      {{-2, 0, -2}, {2, 0, -2}, {2, 0, 2}, {-2, 0, 2},           // floor
+       {0, 0, -1}, {0, 0, 1}, {0, 1, 1}, {0, 1, -1},             // A
+       {-1, 0, 0}, {1, 0, 0}, {1, 1, 0}, {-1, 1, 0},             // B
+       {1, 0, 1}, {1, 1, 1},                                     // C = 5 6 13 12
+       {0, 0, -0.5}, {-1, 0, -0.5}, {-1, 1, -0.5}, {0, 1, -0.5}},  // D, its edge x = 0 on A
+      {{0, 3, 2, 1}, {4, 5, 6, 7}, {8, 9, 10, 11}, {5, 12, 13, 6}, {14, 15, 16, 17}});
+  for (bool repair : {true, false}) {
+    PrepareOptions o;
+    o.repair = repair;
+    Report r;
+    prepare(s, o, r);
+    EXPECT_EQ(count(r, "self_intersections"), 1) << "repair " << repair << all_warnings(r);
+    EXPECT_TRUE(has(warning_with(r, "cross"), "input faces (1, 2)")) << all_warnings(r);
+  }
+}
+
+TEST(PrepareDetect, TJunctionIsReportedWithFaceIds) {
+  // Floor quad 0 1 2 3 (face 0); a wall above its edge 0-1 made of two quads (faces 1, 2) whose
+  // bottom vertex 4 lies in the middle of that edge; another wall (face 3) on edge 1-2 sharing both
+  // of the floor's vertices: conforming, not reported.
+  const PolygonSoup s = soup_of({{0, 0, 0}, {2, 0, 0}, {2, 0, 2}, {0, 0, 2}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0},
+                                 {2, 1, 0}, {2, 1, 2}},
+                                {{0, 3, 2, 1}, {0, 4, 6, 5}, {4, 1, 7, 6}, {1, 2, 8, 7}});
+  Report r;
+  prepare(s, {}, r);
+  EXPECT_EQ(count(r, "t_junctions"), 1) << all_warnings(r);
+  const std::string w = warning_with(r, "T-junction");
+  EXPECT_TRUE(has(w, "input faces 0, 1, 2:") && has(w, "vertex 4") && has(w, "edge 0-1 of input face 0")) << w;
+  // The same wall with its vertex 1e-9 m off the edge (within tolerance) is still a T-junction;
+  // 1 mm off it is not.
+  for (double off : {1e-9, 1e-3}) {
+    PolygonSoup t = s;
+    t.positions[4].y() += off;
+    Report rt;
+    prepare(t, {}, rt);
+    EXPECT_EQ(count(rt, "t_junctions"), off < 1e-6 ? 1 : 0) << "offset " << off << all_warnings(rt);
+  }
+}
+
+TEST(PrepareDetect, LegStandingOnASharedFloorEdgeIsContactNotATJunction) {
+  // A table leg (open bottom, 4 side quads) whose side face z = 1 stands on the floor's grid line
+  // z = 1, its bottom corners inside that edge. With the floor continuing beyond (two quads share
+  // the edge) the floor has no crack there: nothing to report. With only the near floor quad the
+  // edge is open and the leg's two bottom corners are T-junctions on it.
+  const std::vector<Vec3> p = {{0, 0, 0}, {2, 0, 0}, {2, 0, 1}, {0, 0, 1}, {2, 0, 2}, {0, 0, 2},
+                               {0.5, 0, 1}, {0.6, 0, 1}, {0.6, 0, 1.1}, {0.5, 0, 1.1},
+                               {0.5, 0.5, 1}, {0.6, 0.5, 1}, {0.6, 0.5, 1.1}, {0.5, 0.5, 1.1}};
+  std::vector<std::vector<int>> leg = {{6, 10, 11, 7}, {7, 11, 12, 8}, {8, 12, 13, 9}, {9, 13, 10, 6}};
+  for (bool far_quad : {true, false}) {
+    std::vector<std::vector<int>> f = {{0, 3, 2, 1}};
+    if (far_quad) f.push_back({3, 5, 4, 2});
+    f.insert(f.end(), leg.begin(), leg.end());
+    Report r;
+    prepare(soup_of(p, f), {}, r);
+    EXPECT_EQ(count(r, "t_junctions"), far_quad ? 0 : 2) << "far quad " << far_quad << all_warnings(r);
+    EXPECT_EQ(count(r, "self_intersections"), 0) << all_warnings(r);
+  }
+}
+
+TEST(PrepareDetect, NoRepairChangesNothing) {
+  // Duplicate vertex, flipped face, degenerate face: all left as they are.
+  const PolygonSoup s = soup_of({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}},
+                                {{0, 1, 2, 3}, {4, 2, 5}, {1, 5, 6}});
+  PrepareOptions o;
+  o.repair = false;
+  Report r;
+  const PolygonSoup out = prepare(s, o, r);
+  EXPECT_EQ(out.positions, s.positions);
+  EXPECT_EQ(out.position_lines, s.position_lines);
+  ASSERT_EQ(out.faces.size(), s.faces.size());
+  for (size_t k = 0; k < s.faces.size(); ++k) {
+    EXPECT_EQ(out.faces[k].vertices, s.faces[k].vertices) << k;
+    EXPECT_EQ(out.faces[k].origin, s.faces[k].origin) << k;
+    EXPECT_EQ(out.faces[k].line, s.faces[k].line) << k;
+  }
+  EXPECT_EQ(out.input_faces, s.input_faces);
+  // Only the detection steps ran.
+  EXPECT_EQ(r.counts.count("vertices_merged"), 0u);
+  EXPECT_EQ(r.counts.count("faces_reoriented"), 0u);
+  EXPECT_EQ(count(r, "self_intersections"), 0);
+  EXPECT_EQ(count(r, "t_junctions"), 0);
+}
+
+TEST(PrepareDetect, OutOfRangeCornerIsAnInputErrorNamingTheFace) {
+  const PolygonSoup s = soup_of({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}}, {{0, 1, 2}, {0, 1, 7}});
+  Report r;
+  try {
+    prepare(s, {}, r);
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_TRUE(has(e.what(), "test.obj:101: face 1") && has(e.what(), "vertex 7")) << e.what();
+  }
+}
+
+// ---- the shipped examples are clean -----------------------------------------------------------------
+
+TEST(PrepareExamples, ExamplesNeedNoRepair) {
+  for (const char* name : {"room.obj", "cornell_box.obj", "cornell_box_fine.obj"}) {
+    const PolygonSoup s = io::read_obj(std::string(LAMBERT_SOURCE_DIR) + "/examples/" + name);
+    const Scene scene = prepare_and_build(s, {});
+    const Report& r = scene.report;
+    for (const char* key : {"vertices_merged", "degenerate_faces_removed", "repeated_corners_removed",
+                            "pinched_faces_split", "faces_reoriented", "non_orientable_components",
+                            "self_intersections", "t_junctions"})
+      EXPECT_EQ(count(r, key), 0) << name << ": " << key << all_warnings(r);
+    EXPECT_EQ(scene.input_faces, static_cast<int>(s.faces.size()));
+  }
+}
