@@ -463,20 +463,52 @@ KE::Triangle_3 exact(const K::Triangle_3& t) {
   return {pt(t.vertex(0)), pt(t.vertex(1)), pt(t.vertex(2))};
 }
 
+// Do triangles (vertex indices a, b) touch beyond the vertices they share? Exact predicates only, as
+// in CGAL's self_intersections: sharing an edge, only a coplanar fold overlaps; sharing a corner,
+// only if a far edge of one meets the other triangle. False means contact at shared vertices only.
+bool may_touch_beyond_shared(const std::array<int, 3>& a, const std::array<int, 3>& b, const K::Triangle_3& ta,
+                             const K::Triangle_3& tb) {
+  int shared = 0, ia = -1, ib = -1;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (a[i] == b[j]) ++shared, ia = i, ib = j;
+  if (shared == 3) return true;  // the same triangle twice
+  if (shared == 2) {
+    // The corners not shared: a's is the one whose index is in no pair; same for b.
+    int ca = 0, cb = 0;
+    while (std::find(b.begin(), b.end(), a[ca]) != b.end()) ++ca;
+    while (std::find(a.begin(), a.end(), b[cb]) != a.end()) ++cb;
+    const auto& p = ta.vertex((ca + 1) % 3);
+    const auto& q = ta.vertex((ca + 2) % 3);
+    return CGAL::coplanar(p, q, ta.vertex(ca), tb.vertex(cb)) &&
+           CGAL::coplanar_orientation(p, q, ta.vertex(ca), tb.vertex(cb)) == CGAL::POSITIVE;
+  }
+  if (shared == 1) {
+    const K::Segment_3 far_a(ta.vertex((ia + 1) % 3), ta.vertex((ia + 2) % 3));
+    const K::Segment_3 far_b(tb.vertex((ib + 1) % 3), tb.vertex((ib + 2) % 3));
+    return CGAL::do_intersect(ta, far_b) || CGAL::do_intersect(tb, far_a);
+  }
+  return CGAL::do_intersect(ta, tb);
+}
+
 void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& usable, double tol, Report& report) {
   const int nf = static_cast<int>(s.faces.size());
   std::vector<std::vector<Vec3>> polys(nf);
   std::vector<std::vector<K::Triangle_3>> tris(nf);
+  std::vector<std::vector<std::array<int, 3>>> tri_vertices(nf);
   std::vector<Box> boxes;
   for (int k = 0; k < nf; ++k) {
     if (!usable[k]) continue;
     polys[k] = corners(s, k);
     const auto& poly = polys[k];
+    const auto& fv = s.faces[k].vertices;
     for (const auto& t : triangulate_polygon(poly, newell_normal(poly).normalized())) {
       K::Triangle_3 tri({poly[t[0]].x(), poly[t[0]].y(), poly[t[0]].z()},
                         {poly[t[1]].x(), poly[t[1]].y(), poly[t[1]].z()},
                         {poly[t[2]].x(), poly[t[2]].y(), poly[t[2]].z()});
-      if (!tri.is_degenerate()) tris[k].push_back(tri);
+      if (tri.is_degenerate()) continue;
+      tris[k].push_back(tri);
+      tri_vertices[k].push_back({fv[t[0]], fv[t[1]], fv[t[2]]});
     }
     CGAL::Bbox_3 bb;
     for (const auto& t : tris[k]) bb += t.bbox();
@@ -497,9 +529,14 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
     const int of = origin_of(s, f), og = origin_of(s, g);
     if (of == og) continue;
     bool hit = false;
-    for (const auto& tf : tris[f]) {
-      for (const auto& tg : tris[g]) {
-        if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) || !CGAL::do_intersect(tf, tg)) continue;
+    for (size_t i = 0; i < tris[f].size() && !hit; ++i) {
+      const auto& tf = tris[f][i];
+      for (size_t j = 0; j < tris[g].size() && !hit; ++j) {
+        const auto& tg = tris[g][j];
+        if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) ||
+            !may_touch_beyond_shared(tri_vertices[f][i], tri_vertices[g][j], tf, tg))
+          continue;
+        // Where exactly (exact constructions, then rounded): is any of it inside both faces?
         const auto x = CGAL::intersection(exact(tf), exact(tg));
         if (!x) continue;
         Vec3 p;
@@ -514,12 +551,8 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
         } else {
           continue;  // a single point: always on an edge of one of them
         }
-        if (interior_to_both(p, f, g)) {
-          hit = true;
-          break;
-        }
+        hit = interior_to_both(p, f, g);
       }
-      if (hit) break;
     }
     if (hit) found.emplace_back(std::min(of, og), std::max(of, og));
   }

@@ -330,7 +330,8 @@ class Refiner {
   void grid(const std::vector<int>& c, std::vector<std::vector<int>>& pieces) {
     const auto bottom = path(c[0], c[1]), top = path(c[3], c[2]), left = path(c[0], c[3]), right = path(c[1], c[2]);
     const int n = static_cast<int>(bottom.size()) - 1, m = static_cast<int>(left.size()) - 1;
-    const Vec3 &p0 = s_.positions[c[0]], &p1 = s_.positions[c[1]], &p2 = s_.positions[c[2]], &p3 = s_.positions[c[3]];
+    // Copies: add_point reallocates the positions.
+    const Vec3 p0 = s_.positions[c[0]], p1 = s_.positions[c[1]], p2 = s_.positions[c[2]], p3 = s_.positions[c[3]];
     std::vector<std::vector<int>> g(n + 1, std::vector<int>(m + 1));
     for (int j = 0; j <= m; ++j)
       for (int i = 0; i <= n; ++i) {
@@ -352,7 +353,7 @@ class Refiner {
     const auto ab = path(c[0], c[1]), ac = path(c[0], c[2]), bc = path(c[1], c[2]);
     const int k = static_cast<int>(ab.size()) - 1;
     if (static_cast<int>(ac.size()) - 1 != k || static_cast<int>(bc.size()) - 1 != k) return general(boundary(c), pieces);
-    const Vec3 &A = s_.positions[c[0]], &B = s_.positions[c[1]], &C = s_.positions[c[2]];
+    const Vec3 A = s_.positions[c[0]], B = s_.positions[c[1]], C = s_.positions[c[2]];  // copies, as in grid()
     std::vector<std::vector<int>> P(k + 1);
     for (int i = 0; i <= k; ++i) {
       P[i].resize(k + 1 - i);
