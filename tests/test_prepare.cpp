@@ -247,7 +247,7 @@ TEST(PrepareOrient, ClosedRoomFacesInwardAndNestedBlockFacesOutward) {
   EXPECT_EQ(count(r, "self_intersections"), 0) << all_warnings(r);
 }
 
-TEST(PrepareOrient, ClosedBlockRestingOnTheFloorIsNestedAndItsOverlapReported) {
+TEST(PrepareOrient, ClosedBlockRestingOnTheFloorIsNested) {
   // Room [0,4]^3 given outward, a closed block [1,2]x[0,1]x[1,2] standing on its floor given inward:
   // samples on the block's bottom face lie on the room's floor, the others decide.
   const auto room = shapes::box(Vec3::Zero(), Vec3::Constant(4), 1, false);
@@ -259,9 +259,9 @@ TEST(PrepareOrient, ClosedBlockRestingOnTheFloorIsNestedAndItsOverlapReported) {
   EXPECT_EQ(count(r, "faces_reoriented"), 12) << all_warnings(r);
   EXPECT_DOUBLE_EQ(signed_volume(out, {0, 1, 2, 3, 4, 5}), -64.0);
   EXPECT_DOUBLE_EQ(signed_volume(out, {6, 7, 8, 9, 10, 11}), 1.0);
-  // The block's bottom (face 6 + 2 = 8, -y) lies on the room's floor (face 2): coplanar overlap.
-  EXPECT_EQ(count(r, "self_intersections"), 1) << all_warnings(r);
-  EXPECT_TRUE(has(warning_with(r, "overlap"), "(2, 8)")) << all_warnings(r);
+  // The block's bottom (face 6 + 2 = 8, facing -y) lies on the room's floor (face 2, facing +y):
+  // coincident back to back, not reported.
+  EXPECT_EQ(count(r, "self_intersections"), 0) << all_warnings(r);
 }
 
 TEST(PrepareOrient, OpenBoxKeepsMajorityOrientation) {
@@ -303,6 +303,23 @@ TEST(PrepareDetect, SelfIntersectionIsReportedWithFaceIds) {
     prepare(s, o, r);
     EXPECT_EQ(count(r, "self_intersections"), 1) << "repair " << repair << all_warnings(r);
     EXPECT_TRUE(has(warning_with(r, "cross"), "input faces (1, 2)")) << all_warnings(r);
+  }
+}
+
+TEST(PrepareDetect, CoincidentFacesAreReportedOnlyWhenFacingTheSameWay) {
+  // Floor 2 x 2 facing +y (face 0); a rug on it facing +y too (face 1, no shared vertices): counted
+  // twice by the solver, reported. A wall (face 2) and its back-to-back twin (face 3, the same
+  // vertices reversed): one-sided surfaces that do not see each other, not reported.
+  const PolygonSoup s = soup_of({{0, 0, 0}, {2, 0, 0}, {2, 0, 2}, {0, 0, 2}, {0.5, 0, 0.5}, {1.5, 0, 0.5},
+                                 {1.5, 0, 1.5}, {0.5, 0, 1.5}, {3, 0, 0}, {3, 0, 1}, {3, 1, 1}, {3, 1, 0}},
+                                {{0, 3, 2, 1}, {4, 7, 6, 5}, {8, 9, 10, 11}, {11, 10, 9, 8}});
+  for (bool repair : {true, false}) {
+    PrepareOptions o;
+    o.repair = repair;
+    Report r;
+    prepare(s, o, r);
+    EXPECT_EQ(count(r, "self_intersections"), 1) << "repair " << repair << all_warnings(r);
+    EXPECT_TRUE(has(warning_with(r, "overlap"), "input faces (0, 1)")) << all_warnings(r);
   }
 }
 

@@ -497,11 +497,29 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
   std::vector<std::vector<K::Triangle_3>> tris(nf);
   std::vector<std::vector<std::array<int, 3>>> tri_vertices(nf);
   std::vector<Box> boxes;
+  // Vertices with identical coordinates count as shared (an unwelded soup, without repair): the
+  // exact-predicate shortcuts then apply to them too.
+  std::vector<int> same(s.positions.size());
+  {
+    std::vector<int> order;
+    for (int k = 0; k < nf; ++k)
+      if (usable[k]) order.insert(order.end(), s.faces[k].vertices.begin(), s.faces[k].vertices.end());
+    auto less = [&](int a, int b) {
+      const Vec3 &p = s.positions[a], &q = s.positions[b];
+      return std::tie(p.x(), p.y(), p.z(), a) < std::tie(q.x(), q.y(), q.z(), b);
+    };
+    std::sort(order.begin(), order.end(), less);
+    for (size_t i = 0; i < order.size(); ++i)
+      same[order[i]] = i > 0 && s.positions[order[i]] == s.positions[order[i - 1]] ? same[order[i - 1]] : order[i];
+  }
+  std::vector<Vec3> normal(nf, Vec3::Zero());
   for (int k = 0; k < nf; ++k) {
     if (!usable[k]) continue;
     polys[k] = corners(s, k);
     const auto& poly = polys[k];
-    const auto& fv = s.faces[k].vertices;
+    normal[k] = newell_normal(poly);
+    std::vector<int> fv;
+    for (int v : s.faces[k].vertices) fv.push_back(same[v]);
     for (const auto& t : triangulate_polygon(poly, newell_normal(poly).normalized())) {
       K::Triangle_3 tri({poly[t[0]].x(), poly[t[0]].y(), poly[t[0]].z()},
                         {poly[t[1]].x(), poly[t[1]].y(), poly[t[1]].z()},
@@ -542,6 +560,8 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
         Vec3 p;
         if (const auto* seg = boost::get<KE::Segment_3>(&*x)) {
           p = 0.5 * (to_vec(seg->source()) + to_vec(seg->target()));
+        } else if (normal[f].dot(normal[g]) < 0) {
+          continue;  // coincident back to back: one-sided surfaces that do not see each other
         } else if (const auto* tri = boost::get<KE::Triangle_3>(&*x)) {
           p = (to_vec(tri->vertex(0)) + to_vec(tri->vertex(1)) + to_vec(tri->vertex(2))) / 3;
         } else if (const auto* pts = boost::get<std::vector<KE::Point_3>>(&*x)) {
@@ -568,7 +588,9 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
     if (n > 5) pairs += " and " + std::to_string(n - 5) + " more";
     report.warn("self_intersections", n,
                 plural(n, "pair of faces crosses or overlaps", "pairs of faces cross or overlap") +
-                    " (light can leak through, patches are partly hidden): input faces " + pairs);
+                    " (light leaks through crossings; coincident faces facing the same way count twice): input "
+                    "faces " +
+                    pairs);
   }
 }
 

@@ -20,9 +20,10 @@
 //                                                   "faces_reoriented", "non_orientable_components"
 // Detection (reported, never changed; also without repair, on the raw faces, since it changes
 // nothing and tells where light can leak):
-//  4. faces whose interiors cross or overlap (not where they merely touch along an edge or at a
-//     corner, shared or not, e.g. a block standing on a floor); one count per pair of input faces
-//                                                                             "self_intersections"
+//  4. faces whose interiors cross, or coincide facing the same way (a duplicate, a decal); not faces
+//     that merely touch along an edge or at a corner, shared or not (a block standing on a floor),
+//     nor coincident faces back to back (one-sided surfaces that do not see each other: a two-sided
+//     wall, a block's bottom on the floor); one count per pair of input faces   "self_intersections"
 //  5. T-junctions (cracks): a vertex within the tolerance of the interior of an open edge (one face)
 //     that it is not a corner of, itself ending an open edge along that line (a wall's bottom edge
 //     split where the floor's edge is not). A vertex on an edge two faces share is contact, not a
