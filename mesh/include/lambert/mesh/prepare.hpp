@@ -45,6 +45,8 @@
 // diameter exceeds 2 * max_edge (n-gons with short edges). Pieces keep material, group, line and
 // origin; they take the place of their face (face order is kept). Every output edge is
 // <= max_edge * (1 + 1e-12); total area is preserved to round-off.   "faces_refined", "patches_added"
+// (A face the mesher cannot refine, not expected for faces build_scene accepts, keeps its size and
+// is warned about: "faces_not_refined".)
 //
 // Each step records its count (0 too) in report.counts; a warning names up to 5 input faces.
 #include "lambert/mesh/scene.hpp"
@@ -56,8 +58,8 @@ struct PrepareOptions {
   bool repair = true;
   double max_edge = 0;  // metres; 0 = no refinement; must be >= 0 and finite
   // Weld, T-junction and touching distance, relative to the bounding-box diagonal of the used
-  // vertices. 1e-6 (5 um in a 5 m room): above the rounding of files written with 6 digits, far below
-  // any modelled detail.
+  // vertices. 1e-6 (7 um in a 5 x 4 x 2.7 m room): above the rounding of files written with 6 digits,
+  // far below any modelled detail. 0: exact duplicates only.
   double weld_tolerance = 1e-6;
 };
 
