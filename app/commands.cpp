@@ -11,6 +11,7 @@
 #include "lambert/io/atomic_file.hpp"
 #include "lambert/io/readers.hpp"
 #include "lambert/io/vtk.hpp"
+#include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/scene.hpp"
 #include "lambert/solver/solve.hpp"
 #include "lambert/solver/verify.hpp"
@@ -42,8 +43,11 @@ mesh::Scene load(const CommonOptions& o, PhaseTimer& timer) {
   timer.start("load");
   mesh::PolygonSoup soup = io::read_soup(o.scene);
   if (!o.materials.empty()) io::apply_materials_json(soup, o.materials);
-  timer.start("validate");
-  mesh::Scene scene = mesh::build_scene(soup);
+  timer.start("prepare");
+  mesh::PrepareOptions prep;
+  prep.repair = !o.no_repair;
+  prep.max_edge = o.max_edge;
+  mesh::Scene scene = mesh::prepare_and_build(soup, prep);
   timer.stop();
   for (const auto& w : scene.report.warnings) say(o, "lambert: warning: " + w);
   return scene;

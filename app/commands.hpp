@@ -8,6 +8,8 @@ struct CommonOptions {
   std::string scene, materials, output, stats;
   int threads = 0;  // 0 = all cores
   bool quiet = false;
+  bool no_repair = false;  // skip mesh::prepare's repairs (detection still runs)
+  double max_edge = 0;     // m; 0 = no refinement
   // form factors (0 = module default)
   bool no_visibility = false;
   double ff_tolerance = 0;

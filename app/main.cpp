@@ -47,6 +47,13 @@ int main(int argc, char** argv) {
     sub->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
     sub->add_flag("--quiet,-q", common.quiet, "No progress lines, warnings or summary on stderr (errors still print)");
     if (with_output) sub->add_option("--stats", common.stats, "Write run statistics as JSON to this file");
+    sub->add_flag("--no-repair", common.no_repair,
+                  "Use the mesh as it is: no welding, degenerate-face removal or re-orientation "
+                  "(self-intersections and T-junctions are still reported)");
+    sub->add_option("--max-edge", common.max_edge,
+                    "Refine: split every edge longer than this (metres) so no patch edge exceeds it; 0 = off")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
   };
   auto add_formfactor = [&](CLI::App* sub, const char* tolerance_flag) {
     sub->add_flag("--no-visibility", common.no_visibility, "Ignore occlusion (every pair sees each other fully)");

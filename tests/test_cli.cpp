@@ -182,6 +182,7 @@ TEST_F(Cli, BadInputNamesTheProblemAndWritesNothing) {
     const char* obj;
     const char* mtl;
     const char* expect;
+    const char* flags = "";
   };
   const Case cases[] = {
       {"v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 7\n", "", "two.obj:4"},
@@ -189,13 +190,13 @@ TEST_F(Cli, BadInputNamesTheProblemAndWritesNothing) {
       {"mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl nope\nf 1 2 3\n", "newmtl a\nKd 0.5\n", "nope"},
       {"mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl a\nf 1 2 3\n", "newmtl a\nKd 1.0\n", "reflectance"},
       {"mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl a\nf 1 2 3\n", "newmtl a\nKd 0.5\nKe -1\n", "emission"},
-      {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "", "area"},
+      {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "", "area", " --no-repair"},
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.obj);
     write("two.mtl", c.mtl);
     const std::string obj = write("two.obj", c.obj), out = path("out.vtu");
-    const CliRun r = run("solve " + obj + " -o " + out);
+    const CliRun r = run("solve " + obj + " -o " + out + c.flags);
     EXPECT_NE(r.status, 0);
     EXPECT_NE(r.output.find(c.expect), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(out));
@@ -218,4 +219,19 @@ TEST_F(Cli, VerifySpherePassesAtDefaults) {
 TEST_F(Cli, VerifyFurnacePassesAtDefaults) {
   const CliRun r = run("verify furnace");
   EXPECT_EQ(r.status, 0) << r.output;
+}
+
+// With repair (the default) a zero-area face is removed, counted and named, and the rest solves.
+TEST_F(Cli, RepairRemovesDegenerateFaceAndSaysWhich) {
+  write("two.mtl", kTwoMtl);
+  const std::string obj = write("two.obj", kTwoSquares + "v 0 0 0.5\nv 1 0 0.5\nv 2 0 0.5\nf 9 10 11\n");
+  const std::string out = path("out.vtu"), stats = path("s.json");
+  const CliRun r = run("solve " + obj + " -o " + out + " --stats " + stats);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("2"), std::string::npos) << "names input face 2\n" << r.output;
+  std::ifstream in(stats);
+  const auto j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["warnings"]["counts"]["degenerate_faces_removed"].get<int>(), 1) << j.dump(2);
+  EXPECT_EQ(j["patches"].get<int>(), 2);
+  EXPECT_EQ(j["input_faces"].get<int>(), 3);
 }
