@@ -129,6 +129,40 @@ void sample_patch(const mesh::PatchGeometry& g, const detail::PatchData& P, int 
     }
 }
 
+// n stratified points on a planar polygon with unit normal `normal` (the part of a patch in front of another
+// patch's plane): triangles by cumulative area, the square-to-triangle map inside each.
+void sample_polygon(std::span<const Vec3> poly, const Vec3& normal, int n, std::uint64_t seed, std::vector<Vec3>& out) {
+  out.clear();
+  std::vector<std::array<int, 3>> tris = mesh::triangulate_polygon(poly, normal);
+  if (tris.empty())  // a clipped non-convex patch with bridge edges: fan, weighted by unsigned area
+    for (int k = 1; k + 1 < int(poly.size()); ++k) tris.push_back({0, k, k + 1});
+  std::vector<double> area(tris.size());
+  double total = 0;
+  for (size_t t = 0; t < tris.size(); ++t) {
+    const auto& T = tris[t];
+    area[t] = 0.5 * (poly[T[1]] - poly[T[0]]).cross(poly[T[2]] - poly[T[0]]).norm();
+    total += area[t];
+  }
+  if (!(total > 0)) return;
+  for (int k = 0; k < n; ++k) {
+    double u = (k + jitter(seed, 2 * k)) / n * total;
+    size_t t = 0;
+    for (; t + 1 < tris.size() && u > area[t]; ++t) u -= area[t];
+    const double su = std::sqrt(std::clamp(area[t] > 0 ? u / area[t] : 0.0, 0.0, 1.0)), v = jitter(seed, 2 * k + 1);
+    const auto& T = tris[t];
+    out.push_back((1 - su) * poly[T[0]] + su * (1 - v) * poly[T[1]] + su * v * poly[T[2]]);
+  }
+}
+
+// True if some corner of patch a lies strictly behind the plane of patch b (relative tolerance 1e-12).
+bool behind_plane(const mesh::PatchGeometry& g, int a, int b) {
+  const Vec3& n = g.normal[b];
+  const double offset = n.dot(g.centroid[b]), eps = 1e-12 * std::sqrt(std::max(g.area[a], g.area[b]));
+  for (const Vec3& p : g.polygon(a))
+    if (n.dot(p) - offset < -eps) return true;
+  return false;
+}
+
 struct Counters {
   long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0;
   std::array<long long, kMethodCount> by_method{};
@@ -156,7 +190,7 @@ class Assembler {
 
  private:
   void tile(int bi, int bj, TileBuffers& b, Counters& c);
-  double visible_ratio(int s, int t, TileBuffers& b, Counters& c) const;
+  double visible_ratio(int s, int t, int m, TileBuffers& b, Counters& c) const;
 
   const mesh::PatchGeometry& g_;
   const Options& o_;
@@ -169,11 +203,25 @@ class Assembler {
   int qk1_ = 1, qk2_ = 1, tk1_ = 1, tk2_ = 1;  // source samples qk1 x qk2, target samples tk1 x tk2
 };
 
-double Assembler::visible_ratio(int s, int t, TileBuffers& b, Counters& c) const {
+double Assembler::visible_ratio(int s, int t, int m, TileBuffers& b, Counters& c) const {
+  const int qk1 = qk1_ * m, qk2 = qk2_ * m, tk1 = tk1_ * m, tk2 = tk2_ * m;
   const std::uint64_t seed = mix(std::uint64_t(s) * 0x100000001ull + std::uint64_t(t));
-  sample_patch(g_, prep_->P, s, qk1_, qk2_, seed, b.xs);
-  sample_patch(g_, prep_->P, t, tk1_, tk2_, mix(seed), b.ys);
   const Vec3 &ns = g_.normal[s], &nt = g_.normal[t];
+  // Patches crossing each other's planes exchange light only between the parts in front of each other:
+  // sample those parts, or a thin visible strip may get no sample at all (and a pair seen through a wall
+  // would be taken as unoccluded).
+  const bool straddle = behind_plane(g_, s, t) || behind_plane(g_, t, s);
+  if (straddle) {
+    const double eps = 1e-12 * std::sqrt(std::max(g_.area[s], g_.area[t]));
+    std::vector<Vec3> ps, pt;
+    detail::clip_front(g_.polygon(s), nt, nt.dot(g_.centroid[t]), eps, ps);
+    detail::clip_front(g_.polygon(t), ns, ns.dot(g_.centroid[s]), eps, pt);
+    sample_polygon(ps, ns, qk1 * qk2, seed, b.xs);
+    sample_polygon(pt, nt, tk1 * tk2, mix(seed), b.ys);
+  } else {
+    sample_patch(g_, prep_->P, s, qk1, qk2, seed, b.xs);
+    sample_patch(g_, prep_->P, t, tk1, tk2, mix(seed), b.ys);
+  }
   // Rays between stratified points of the two patches; each sample pair is weighted by the kernel
   // cos cos / r^2, so the ratio estimates int int K V / int int K. Pairs of points that do not see each
   // other's front (straddling patches) carry no weight and cast no ray.
@@ -198,8 +246,9 @@ double Assembler::visible_ratio(int s, int t, TileBuffers& b, Counters& c) const
     den += b.fx[k];
     if (!b.hidden[k]) num += b.fx[k];
   }
-  // No sample pair sees the other (a sliver of a straddling pair): no evidence of occlusion.
-  if (!(den > 0)) return 1.0;
+  // No sample pair sees the other even after clipping: the parts in front of each other have (numerically)
+  // no area, so nothing is exchanged. Never 1 here: that let light through walls (a leak).
+  if (!(den > 0)) return 0.0;
   return num / den;  // <= 1: num sums a subset of den's non-negative terms in the same order
 }
 
@@ -362,7 +411,11 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
               if (!o_.cull_occlusion || tree_.may_block(sh, i, j)) {
                 ++c.ray_tested;
                 const bool swap = area[j] < area[i];
-                F(i, j) *= visible_ratio(swap ? j : i, swap ? i : j, b, c);
+                // A pair that carries a large share of a row dominates that row's visibility error: give it
+                // more samples per side (x2 per side = 16x rays from 2% of the row, x3 = 81x from 10%).
+                const double share = std::max(F(i, j), F(i, j) * area[i] / area[j]);
+                const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
+                F(i, j) *= visible_ratio(swap ? j : i, swap ? i : j, m, b, c);
                 continue;
               }
             }
