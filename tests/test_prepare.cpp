@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lambert/io/readers.hpp"
+#include "soup_util.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/shapes.hpp"
 
@@ -18,21 +19,7 @@ using namespace lambert::mesh;
 
 namespace {
 
-// A soup as an OBJ reader would produce it: positions on lines 1..n, face k on line 100 + k.
-PolygonSoup soup_of(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces) {
-  PolygonSoup s = make_empty_soup("test.obj");
-  for (size_t i = 0; i < positions.size(); ++i) {
-    s.positions.push_back(positions[i]);
-    s.position_lines.push_back(static_cast<int>(i) + 1);
-  }
-  for (size_t k = 0; k < faces.size(); ++k) {
-    SoupFace f;
-    f.vertices = faces[k];
-    f.line = 100 + static_cast<int>(k);
-    s.faces.push_back(f);
-  }
-  return s;
-}
+using lambert::mesh::test_util::soup_of;
 
 // Indexed soup from polygons, identical coordinates sharing one vertex.
 PolygonSoup soup_from(const shapes::Polygons& polys) {

@@ -8,27 +8,14 @@
 #include <vector>
 
 #include "lambert/mesh/scene.hpp"
+#include "soup_util.hpp"
 
 using namespace lambert;
 using namespace lambert::mesh;
 
 namespace {
 
-// A soup as an OBJ reader would produce it: positions on lines 1..n, face k on line 100 + k.
-PolygonSoup soup_of(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces) {
-  PolygonSoup s = make_empty_soup("test.obj");
-  for (size_t i = 0; i < positions.size(); ++i) {
-    s.positions.push_back(positions[i]);
-    s.position_lines.push_back(static_cast<int>(i) + 1);
-  }
-  for (size_t k = 0; k < faces.size(); ++k) {
-    SoupFace f;
-    f.vertices = faces[k];
-    f.line = 100 + static_cast<int>(k);
-    s.faces.push_back(f);
-  }
-  return s;
-}
+using lambert::mesh::test_util::soup_of;
 
 // Unit square in z = 0 (normal +z) and a triangle beside it sharing the edge 1-2.
 PolygonSoup square_and_triangle() {

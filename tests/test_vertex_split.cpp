@@ -8,26 +8,14 @@
 #include <vector>
 
 #include "lambert/mesh/scene.hpp"
+#include "soup_util.hpp"
 
 using namespace lambert;
 using namespace lambert::mesh;
 
 namespace {
 
-PolygonSoup soup_of(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces) {
-  PolygonSoup s = make_empty_soup("test.obj");
-  for (size_t i = 0; i < positions.size(); ++i) {
-    s.positions.push_back(positions[i]);
-    s.position_lines.push_back(static_cast<int>(i) + 1);
-  }
-  for (size_t k = 0; k < faces.size(); ++k) {
-    SoupFace f;
-    f.vertices = faces[k];
-    f.line = 100 + static_cast<int>(k);
-    s.faces.push_back(f);
-  }
-  return s;
-}
+using lambert::mesh::test_util::soup_of;
 
 // Unit cube, vertex index x + 2y + 4z, six quads with outward normals (consistently oriented).
 Scene unit_cube() {
