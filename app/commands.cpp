@@ -140,9 +140,9 @@ json base_stats(const mesh::Scene& scene) {
 
 int run_info(const CommonOptions& o) {
   PhaseTimer timer;
-  CommonOptions loud = o;
-  loud.quiet = true;  // warnings are listed below instead
-  mesh::Scene scene = load(loud, timer);
+  CommonOptions silent = o;
+  silent.quiet = true;  // warnings are listed below instead
+  mesh::Scene scene = load(silent, timer);
   const auto& g = scene.geometry;
   Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
   for (const Vec3& p : g.points) {
