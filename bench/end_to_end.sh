@@ -10,7 +10,7 @@ echo "date $(date -u +%F), $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo
 echo
 echo "| scene | patches | rays | method | iterations | load s | prepare s | form factors s | solve s | write s | total s |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
-for scene in examples/cornell_box.obj examples/cornell_box_fine.obj examples/room.obj; do
+for scene in examples/cornell_box.obj examples/cornell_box_fine.obj examples/room.obj examples/floorplan.obj; do
   "$BIN" solve "$scene" -o "$out/x.vtu" --stats "$out/s.json" --quiet
   python3 - "$scene" "$out/s.json" <<'PY'
 import json, sys
