@@ -1,0 +1,243 @@
+// Adaptive refinement (solver/adaptive.hpp) against a case with a known continuous answer.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "lambert/formfactor/kernel.hpp"
+#include "lambert/mesh/shapes.hpp"
+#include "lambert/solver/adaptive.hpp"
+
+using namespace lambert;
+
+namespace {
+
+constexpr double kRho = 0.5;  // floor reflectance
+constexpr double kLe = 1.0;   // emitter radiance, W m^-2 sr^-1
+
+// Small square emitter above the floor's (0, 0) corner, facing down (-z).
+std::vector<Vec3> emitter() {
+  const double a = 0.05, b = 0.2, h = 0.15;
+  return {{a, a, h}, {a, b, h}, {b, b, h}, {b, a, h}};
+}
+
+// Unit floor [0,1]^2 at z = 0 (normal +z, rho = 0.5) in n x n quads, plus the emitter (rho = 0).
+// Corners welded by position so that neighbours share vertex indices.
+mesh::PolygonSoup floor_scene(int n) {
+  mesh::PolygonSoup s = mesh::make_empty_soup("floor.test");
+  mesh::Material fl{"floor", RGB::Constant(kRho), RGB::Zero(), {}};
+  mesh::Material em{"emitter", RGB::Zero(), RGB::Constant(kLe), {}};
+  s.materials = {s.materials[0], fl, em};
+  std::map<std::array<double, 3>, int> index;
+  auto add = [&](const std::vector<Vec3>& poly, int material) {
+    mesh::SoupFace f;
+    for (const Vec3& v : poly) {
+      auto [it, added] = index.try_emplace({v.x(), v.y(), v.z()}, static_cast<int>(s.positions.size()));
+      if (added) {
+        s.positions.push_back(v);
+        s.position_lines.push_back(0);
+      }
+      f.vertices.push_back(it->second);
+    }
+    f.material = material;
+    f.line = static_cast<int>(s.faces.size()) + 1;
+    s.faces.push_back(f);
+  };
+  for (const auto& q : mesh::shapes::grid(Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY(), n, n)) add(q, 1);
+  add(emitter(), 2);
+  return s;
+}
+
+// Exact floor radiance at x: no interreflection (the floor is flat, the emitter black), so
+// L(x) = rho * Le * F(dA_x -> emitter), Lambert's contour formula.
+double exact_radiance(const Vec3& x) {
+  const auto e = emitter();
+  return kRho * kLe * formfactor::point_to_polygon(x, Vec3::UnitZ(), e);
+}
+
+// Integrates f over the parallelogram quad (corners q0..q3) with 3 x 3 Gauss points on cells no
+// wider than h: L(x) varies on the scale of the emitter height (0.15 m), so h = 1/128 m resolves it.
+template <class Fn>
+double integrate_quad(std::span<const Vec3> q, Fn f, double h = 1.0 / 128) {
+  const Vec3 u = q[1] - q[0], v = q[3] - q[0];
+  const int nu = std::max(1, static_cast<int>(std::ceil(u.norm() / h - 1e-9)));
+  const int nv = std::max(1, static_cast<int>(std::ceil(v.norm() / h - 1e-9)));
+  const double gx[3] = {0.5 - 0.5 * std::sqrt(0.6), 0.5, 0.5 + 0.5 * std::sqrt(0.6)};
+  const double gw[3] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
+  const double cell = u.cross(v).norm() / (nu * nv);
+  double sum = 0;
+  for (int i = 0; i < nu; ++i)
+    for (int j = 0; j < nv; ++j)
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          sum += gw[a] * gw[b] * cell * f(q[0] + (i + gx[a]) / nu * u + (j + gx[b]) / nv * v);
+  return sum;
+}
+
+struct Errors {
+  double l2 = 0;          // relative L2 error of the piecewise-constant floor radiance vs L(x)
+  double patch_avg = 0;   // max |L_p - exact patch average| / max L_p (checks the reference itself)
+  int floor_patches = 0;
+};
+
+Errors floor_errors(const mesh::Scene& scene, const ColorField& L) {
+  Errors e;
+  double err2 = 0, norm2 = 0, lmax = 0;
+  for (int p = 0; p < scene.patches(); ++p) {
+    if (scene.materials[scene.material[p]].name != "floor") continue;
+    const auto q = scene.geometry.polygon(p);
+    EXPECT_EQ(q.size(), 4u) << "patch " << p;
+    const double Lp = L(p, 0);
+    err2 += integrate_quad(q, [&](const Vec3& x) { return std::pow(Lp - exact_radiance(x), 2); });
+    norm2 += integrate_quad(q, [&](const Vec3& x) { return std::pow(exact_radiance(x), 2); });
+    const double avg = integrate_quad(q, exact_radiance) / scene.geometry.area[p];
+    e.patch_avg = std::max(e.patch_avg, std::abs(Lp - avg));
+    lmax = std::max(lmax, Lp);
+    ++e.floor_patches;
+  }
+  e.l2 = std::sqrt(err2 / norm2);
+  e.patch_avg /= lmax;
+  return e;
+}
+
+struct Uniform {
+  mesh::Scene scene;
+  solver::Solution solution;
+  double seconds;
+};
+
+Uniform solve_uniform(int n) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Uniform u{mesh::build_scene(floor_scene(n)), {}, 0};
+  const auto F = formfactor::assemble(u.scene.geometry);
+  u.solution = solver::solve(F, u.scene.geometry.area, u.scene.reflectance_field(), u.scene.emission_field());
+  u.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return u;
+}
+
+}  // namespace
+
+// The L2 error of the piecewise-constant radiance against the exact L(x) = rho Le F(x -> emitter),
+// adaptive (from a 4 x 4 floor, budget = patches of the uniform 16 x 16 floor) vs uniform 16 x 16.
+TEST(Adaptive, BeatsUniformRefinementAtEqualPatchCount) {
+  const Uniform uni = solve_uniform(16);
+  const Errors eu = floor_errors(uni.scene, uni.solution.radiance);
+
+  solver::AdaptiveOptions o;
+  o.max_patches = uni.scene.patches();  // 257
+  o.tolerance = 0.01;                   // small enough that the budget, not the tolerance, stops it
+  o.max_rounds = 8;
+  const solver::AdaptiveResult r = solver::solve_adaptive(floor_scene(4), o);
+  const Errors ea = floor_errors(r.scene, r.solution.radiance);
+
+  std::string rounds;
+  for (size_t k = 0; k < r.patches_per_round.size(); ++k)
+    rounds += std::to_string(r.patches_per_round[k]) + " (max jump " + std::to_string(r.max_indicator[k]) + ") ";
+  std::printf("uniform : %d patches, L2 error %.4f, %.2f s\n", uni.scene.patches(), eu.l2, uni.seconds);
+  std::printf("adaptive: %d patches, L2 error %.4f, %.2f s, stop %s, rounds: %s\n", r.scene.patches(), ea.l2,
+              r.seconds, r.stop.c_str(), rounds.c_str());
+
+  // The reference is right: each solved patch equals the exact patch average of L(x) up to the
+  // form-factor tolerance (1e-8 absolute on F) and the 3x3 Gauss cells (smooth integrand), 1e-5 relative.
+  EXPECT_LT(eu.patch_avg, 1e-5);
+  EXPECT_LT(ea.patch_avg, 1e-5);
+  EXPECT_LE(r.scene.patches(), uni.scene.patches());
+  // Adaptive must be clearly better, not just by noise: at most 0.8 x the uniform error.
+  EXPECT_LT(ea.l2, 0.8 * eu.l2) << "adaptive " << ea.l2 << " uniform " << eu.l2;
+}
+
+// Nothing above tolerance: one solve, no refinement, and the result is the plain solve.
+TEST(Adaptive, StopsWithoutRefiningWhenJumpsAreBelowTolerance) {
+  solver::AdaptiveOptions o;
+  o.max_patches = 1000;
+  o.tolerance = 2.0;  // a relative jump is at most 1 (both radiances lie in [0, max reflected])
+  const auto r = solver::solve_adaptive(floor_scene(4), o);
+  ASSERT_EQ(r.patches_per_round.size(), 1u);
+  EXPECT_EQ(r.patches_per_round[0], 17);
+  EXPECT_EQ(r.stop, "converged");
+  EXPECT_LE(r.max_indicator[0], 1.0);
+  EXPECT_GT(r.max_indicator[0], 0.0);
+}
+
+// Budget respected, total area kept, faces keep their input origin, and the final radiance (solved
+// from the previous round's guess) equals a fresh solve of the final scene.
+TEST(Adaptive, RespectsBudgetKeepsAreaAndReuseDoesNotBiasTheSolution) {
+  solver::AdaptiveOptions o;
+  o.max_patches = 100;
+  o.tolerance = 0.01;
+  o.max_rounds = 10;
+  const auto r = solver::solve_adaptive(floor_scene(4), o);
+  EXPECT_LE(r.scene.patches(), 100);
+  EXPECT_GT(r.scene.patches(), 17);
+  EXPECT_EQ(r.stop, "budget");
+  double floor_area = 0;
+  for (int p = 0; p < r.scene.patches(); ++p) {
+    if (r.scene.materials[r.scene.material[p]].name == "floor") floor_area += r.scene.geometry.area[p];
+    EXPECT_GE(r.scene.face_id[p], 0);
+    EXPECT_LT(r.scene.face_id[p], 17) << "patch " << p;
+  }
+  EXPECT_NEAR(floor_area, 1.0, 1e-12);  // midpoint splits of squares: exact up to round-off
+  const auto F = formfactor::assemble(r.scene.geometry);
+  const auto fresh =
+      solver::solve(F, r.scene.geometry.area, r.scene.reflectance_field(), r.scene.emission_field());
+  // Both solves converge to 1e-8 relative residual; the operator is the same.
+  EXPECT_LT((fresh.radiance - r.solution.radiance).cwiseAbs().maxCoeff(), 1e-7);
+}
+
+// Triangles split into 4 by edge midpoints; a hanging node still makes neighbours (indicator > 0 on
+// both sides of a split edge).
+TEST(Adaptive, SplitsTrianglesAndFindsNeighboursAcrossHangingNodes) {
+  mesh::PolygonSoup s = floor_scene(2);
+  // Replace each floor quad by two triangles.
+  std::vector<mesh::SoupFace> faces;
+  for (const auto& f : s.faces) {
+    if (f.material != 1) {
+      faces.push_back(f);
+      continue;
+    }
+    mesh::SoupFace a = f, b = f;
+    a.vertices = {f.vertices[0], f.vertices[1], f.vertices[2]};
+    b.vertices = {f.vertices[0], f.vertices[2], f.vertices[3]};
+    faces.push_back(a);
+    faces.push_back(b);
+  }
+  s.faces = faces;
+  solver::AdaptiveOptions o;
+  o.max_patches = 60;
+  o.tolerance = 0.01;
+  o.max_rounds = 3;
+  const auto r = solver::solve_adaptive(s, o);
+  ASSERT_GE(r.patches_per_round.size(), 2u);
+  EXPECT_EQ(r.patches_per_round[0], 9);
+  EXPECT_GT(r.scene.patches(), 9);
+  double floor_area = 0;
+  for (int p = 0; p < r.scene.patches(); ++p) {
+    if (r.scene.material[p] == 1) {
+      EXPECT_EQ(r.scene.geometry.polygon(p).size(), 3u) << "patch " << p;
+      floor_area += r.scene.geometry.area[p];
+    }
+  }
+  EXPECT_NEAR(floor_area, 1.0, 1e-12);
+  // Every floor patch touches another floor patch along an edge, so with a non-uniform L every one
+  // has a neighbour; an indicator of 0 would mean a missed neighbour (L differs between any two).
+  const auto ind = solver::jump_indicator(r.scene, r.solution.radiance);
+  for (int p = 0; p < r.scene.patches(); ++p) {
+    if (r.scene.material[p] == 1) EXPECT_GT(ind[p], 0.0) << "patch " << p;
+  }
+}
+
+TEST(Adaptive, RejectsInvalidOptions) {
+  const auto s = floor_scene(2);
+  solver::AdaptiveOptions o;
+  o.tolerance = 0;
+  EXPECT_THROW(solver::solve_adaptive(s, o), InputError);
+  o.tolerance = 0.1;
+  o.max_rounds = -1;
+  EXPECT_THROW(solver::solve_adaptive(s, o), InputError);
+  o.max_rounds = 2;
+  o.max_patches = 3;  // the input already has 5 patches
+  EXPECT_THROW(solver::solve_adaptive(s, o), InputError);
+}
