@@ -235,3 +235,24 @@ TEST_F(Cli, RepairRemovesDegenerateFaceAndSaysWhich) {
   EXPECT_EQ(j["patches"].get<int>(), 2);
   EXPECT_EQ(j["input_faces"].get<int>(), 3);
 }
+
+// --max-edge refines (every patch edge <= L) and face_id still names the input face.
+TEST_F(Cli, MaxEdgeRefinesAndKeepsFaceId) {
+  write("two.mtl", kTwoMtl);
+  const std::string obj = write("two.obj", kTwoSquares), out = path("ref.vtu");
+  const CliRun r = run("solve " + obj + " -o " + out + " --max-edge 0.25 --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto grid = read_vtu(out);
+  ASSERT_EQ(grid->GetNumberOfCells(), 32) << "two unit squares split 4 x 4";
+  vtkDataArray* id = grid->GetCellData()->GetArray("face_id");
+  vtkDataArray* area = grid->GetCellData()->GetArray("area");
+  double total[2] = {0, 0};
+  for (vtkIdType c = 0; c < grid->GetNumberOfCells(); ++c) {
+    const int f = int(id->GetTuple1(c));
+    ASSERT_TRUE(f == 0 || f == 1) << "cell " << c << " face_id " << f;
+    total[f] += area->GetTuple1(c);
+  }
+  // Refinement tiles each face exactly: its pieces' areas sum to 1 m^2 (round-off tolerance).
+  EXPECT_NEAR(total[0], 1.0, 1e-12);
+  EXPECT_NEAR(total[1], 1.0, 1e-12);
+}
