@@ -121,13 +121,15 @@ Uniform solve_uniform(int n) {
 }  // namespace
 
 // The L2 error of the piecewise-constant radiance against the exact L(x) = rho Le F(x -> emitter),
-// adaptive (from a 4 x 4 floor, budget = patches of the uniform 16 x 16 floor) vs uniform 16 x 16.
+// adaptive (from a 4 x 4 floor, budget = patches of the uniform n x n floor) vs uniform n x n.
 TEST(Adaptive, BeatsUniformRefinementAtEqualPatchCount) {
-  const Uniform uni = solve_uniform(16);
+  for (int n : {8, 16, 32}) {
+  SCOPED_TRACE("uniform " + std::to_string(n) + " x " + std::to_string(n));
+  const Uniform uni = solve_uniform(n);
   const Errors eu = floor_errors(uni.scene, uni.solution.radiance);
 
   solver::AdaptiveOptions o;
-  o.max_patches = uni.scene.patches();  // 257
+  o.max_patches = uni.scene.patches();  // n^2 + 1
   o.tolerance = 0.01;                   // small enough that the budget, not the tolerance, stops it
   o.max_rounds = 8;
   const solver::AdaptiveResult r = solver::solve_adaptive(floor_scene(4), o);
@@ -147,6 +149,7 @@ TEST(Adaptive, BeatsUniformRefinementAtEqualPatchCount) {
   EXPECT_LE(r.scene.patches(), uni.scene.patches());
   // Adaptive must be clearly better, not just by noise: at most 0.8 x the uniform error.
   EXPECT_LT(ea.l2, 0.8 * eu.l2) << "adaptive " << ea.l2 << " uniform " << eu.l2;
+  }
 }
 
 // Nothing above tolerance: one solve, no refinement, and the result is the plain solve.
@@ -225,7 +228,9 @@ TEST(Adaptive, SplitsTrianglesAndFindsNeighboursAcrossHangingNodes) {
   // has a neighbour; an indicator of 0 would mean a missed neighbour (L differs between any two).
   const auto ind = solver::jump_indicator(r.scene, r.solution.radiance);
   for (int p = 0; p < r.scene.patches(); ++p) {
-    if (r.scene.material[p] == 1) EXPECT_GT(ind[p], 0.0) << "patch " << p;
+    if (r.scene.material[p] == 1) {
+      EXPECT_GT(ind[p], 0.0) << "patch " << p;
+    }
   }
 }
 
