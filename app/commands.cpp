@@ -13,6 +13,7 @@
 #include "lambert/io/vtk.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/scene.hpp"
+#include "lambert/solver/adaptive.hpp"
 #include "lambert/solver/solve.hpp"
 #include "lambert/solver/verify.hpp"
 #include "progress.hpp"
@@ -237,12 +238,103 @@ int run_formfactors(const CommonOptions& o) {
   return 0;
 }
 
+// What the two solve paths share: refuse a non-converged result, write the .vtu, stats and summary.
+// `extra` goes into the stats JSON, `detail` (form-factor or adaptive lines) into the summary.
+int finish_solve(const CommonOptions& o, const mesh::Scene& scene, const solver::Solution& sol,
+                 const solver::Options& so, PhaseTimer& timer, json extra, const std::string& detail) {
+  for (const auto& w : sol.warnings) say(o, "lambert: warning: " + w);
+  if (!sol.converged) {
+    std::string why;
+    for (size_t c = 0; c < sol.channels.size(); ++c)
+      why += fmt::format(" channel {}: {} after {} iterations, residual {:.3e};", c, sol.channels[c].stop,
+                         sol.channels[c].iterations, sol.channels[c].residual);
+    std::fprintf(stderr, "lambert: error: the solve did not reach the tolerance %g:%s no output written (try "
+                 "--method bicgstab or a larger --max-iterations)\n", so.tolerance, why.c_str());
+    return 3;
+  }
+  timer.start("write");
+  io::write_vtu(o.output, scene, sol.radiance, sol.irradiance, o.crease_deg);
+  timer.stop();
+
+  int max_iterations = 0;
+  double max_residual = 0;
+  json channels = json::array();
+  for (const auto& c : sol.channels) {
+    max_iterations = std::max(max_iterations, c.iterations);
+    max_residual = std::max(max_residual, c.residual);
+    channels.push_back({{"iterations", c.iterations}, {"matvecs", c.matvecs}, {"residual", c.residual}, {"stop", c.stop}});
+  }
+  if (!o.stats.empty()) {
+    json j = base_stats(scene);
+    j.update(extra);
+    j["output"] = o.output;
+    j["phases"] = phases_json(timer);
+    j["method"] = solver::to_string(sol.method);
+    j["tolerance"] = so.tolerance;
+    j["iterations"] = max_iterations;
+    j["residual"] = max_residual;
+    j["channels"] = channels;
+    j["solver_warnings"] = sol.warnings;
+    j["energy"] = {{"emitted_W", rgb_json(sol.emitted)},
+                   {"absorbed_W", rgb_json(sol.absorbed)},
+                   {"escaped_W", rgb_json(sol.escaped)},
+                   {"balance_residual", sol.energy_residual}};
+    write_json(o.stats, j);
+  }
+  if (!o.quiet) {
+    std::string s = fmt::format("lambert solve {}\n", o.scene) + scene_line(scene) + detail;
+    s += fmt::format("  solve        {}, {} channel(s), iterations {}, residual {:.2e}\n", solver::to_string(sol.method),
+                     sol.channels.size(), max_iterations, max_residual);
+    s += fmt::format("  energy       emitted {} W, absorbed {} W, escaped {} W, balance residual {:.1e}\n",
+                     rgb_str(sol.emitted), rgb_str(sol.absorbed), rgb_str(sol.escaped), sol.energy_residual);
+    s += fmt::format("  phases       {}\n  output       {}\n", phases_line(timer), o.output);
+    std::fputs(s.c_str(), stderr);
+  }
+  return 0;
+}
+
+// --adaptive-budget: solve coarse, split patches whose radiance jumps to a neighbour, re-solve.
+int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseTimer& timer) {
+  timer.start("load");
+  mesh::PolygonSoup soup = io::read_soup(o.scene);
+  if (!o.materials.empty()) io::apply_materials_json(soup, o.materials);
+  timer.start("prepare");
+  mesh::PrepareOptions prep;
+  prep.repair = !o.no_repair;
+  prep.max_edge = o.max_edge;
+  mesh::Report prep_report;
+  soup = mesh::prepare(soup, prep, prep_report);
+  timer.start("adaptive");
+  solver::AdaptiveOptions ao;
+  ao.max_patches = o.adaptive_budget;
+  ao.tolerance = o.adaptive_tolerance;
+  ao.max_rounds = o.adaptive_rounds;
+  ao.ff = ff_options(o, nullptr);
+  ao.solve = so;
+  solver::AdaptiveResult r = solver::solve_adaptive(soup, ao);
+  timer.stop();
+  // The final scene's report covers validation; put the preparation's counts and warnings first.
+  for (const auto& [k, v] : prep_report.counts) r.scene.report.counts[k] += v;
+  r.scene.report.warnings.insert(r.scene.report.warnings.begin(), prep_report.warnings.begin(), prep_report.warnings.end());
+  for (const auto& w : r.scene.report.warnings) say(o, "lambert: warning: " + w);
+  json extra;
+  extra["adaptive"] = {{"patches_per_round", r.patches_per_round}, {"max_indicator", r.max_indicator},
+                       {"stop", r.stop}, {"not_splittable", r.not_splittable}, {"budget", ao.max_patches},
+                       {"tolerance", ao.tolerance}};
+  std::string rounds;
+  for (int p : r.patches_per_round) rounds += (rounds.empty() ? "" : " -> ") + std::to_string(p);
+  const std::string detail = fmt::format("  adaptive     patches per round {} (stop: {}, largest jump {:.3g})\n", rounds,
+                                         r.stop, r.max_indicator.empty() ? 0.0 : r.max_indicator.back());
+  return finish_solve(o, r.scene, r.solution, so, timer, extra, detail);
+}
+
 int run_solve(const CommonOptions& o) {
   PhaseTimer timer;
   solver::Options so;
   so.method = solver::parse_method(o.method);  // fail on a bad name before any work
   so.tolerance = o.solve_tolerance;
   if (o.max_iterations > 0) so.max_iterations = o.max_iterations;
+  if (o.adaptive_budget > 0) return run_solve_adaptive(o, so, timer);
   mesh::Scene scene = load(o, timer);
 
   formfactor::Stats st;
@@ -265,56 +357,12 @@ int run_solve(const CommonOptions& o) {
       progress.update(std::clamp(std::log10(std::max(residual, 1e-300)) / std::log10(so.tolerance), 0.0, 1.0));
     };
     sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field(), so);
+    so.progress = nullptr;
   }
   timer.stop();
-  for (const auto& w : sol.warnings) say(o, "lambert: warning: " + w);
-  if (!sol.converged) {
-    std::string why;
-    for (size_t c = 0; c < sol.channels.size(); ++c)
-      why += fmt::format(" channel {}: {} after {} iterations, residual {:.3e};", c, sol.channels[c].stop,
-                         sol.channels[c].iterations, sol.channels[c].residual);
-    throw InputError("the solve did not reach the tolerance " + fmt::format("{:g}", so.tolerance) + ":" + why +
-                     " no output written (try --method bicgstab or a larger --max-iterations)");
-  }
-  timer.start("write");
-  io::write_vtu(o.output, scene, sol.radiance, sol.irradiance, o.crease_deg);
-  timer.stop();
-
-  int max_iterations = 0;
-  double max_residual = 0;
-  json channels = json::array();
-  for (const auto& c : sol.channels) {
-    max_iterations = std::max(max_iterations, c.iterations);
-    max_residual = std::max(max_residual, c.residual);
-    channels.push_back({{"iterations", c.iterations}, {"matvecs", c.matvecs}, {"residual", c.residual}, {"stop", c.stop}});
-  }
-  if (!o.stats.empty()) {
-    json j = base_stats(scene);
-    j["output"] = o.output;
-    j["phases"] = phases_json(timer);
-    j["form_factors"] = ff_json(st, f);
-    j["method"] = solver::to_string(sol.method);
-    j["tolerance"] = so.tolerance;
-    j["iterations"] = max_iterations;
-    j["residual"] = max_residual;
-    j["channels"] = channels;
-    j["solver_warnings"] = sol.warnings;
-    j["energy"] = {{"emitted_W", rgb_json(sol.emitted)},
-                   {"absorbed_W", rgb_json(sol.absorbed)},
-                   {"escaped_W", rgb_json(sol.escaped)},
-                   {"balance_residual", sol.energy_residual}};
-    write_json(o.stats, j);
-  }
-  if (!o.quiet) {
-    std::string s = fmt::format("lambert solve {}\n", o.scene) + scene_line(scene) + ff_summary(st);
-    s += fmt::format("  solve        {}, {} channel(s), iterations {}, residual {:.2e}\n", solver::to_string(sol.method),
-                     sol.channels.size(), max_iterations, max_residual);
-    s += fmt::format("  energy       emitted {} W, absorbed {} W, escaped {} W, balance residual {:.1e}\n",
-                     rgb_str(sol.emitted), rgb_str(sol.absorbed), rgb_str(sol.escaped), sol.energy_residual);
-    s += fmt::format("  phases       {}\n  output       {}\n", phases_line(timer), o.output);
-    std::fputs(s.c_str(), stderr);
-  }
-  return 0;
+  json extra;
+  extra["form_factors"] = ff_json(st, f);
+  return finish_solve(o, scene, sol, so, timer, extra, ff_summary(st));
 }
 
 int run_verify_sphere(const VerifyOptions& v, const CommonOptions&) {

@@ -19,6 +19,10 @@ struct CommonOptions {
   double solve_tolerance = 1e-8;
   int max_iterations = 0;
   double crease_deg = 30.0;
+  // adaptive refinement (0 = off)
+  int adaptive_budget = 0;
+  double adaptive_tolerance = 0.05;
+  int adaptive_rounds = 4;
 };
 
 struct VerifyOptions {

@@ -82,6 +82,18 @@ int main(int argc, char** argv) {
                     "Per-vertex averages never cross an edge whose normals differ by more than this (degrees)")
       ->check(CLI::Range(0.0, 180.0))
       ->capture_default_str();
+  solve->add_option("--adaptive-budget", common.adaptive_budget,
+                    "Adaptive refinement: solve, split patches whose radiance jumps to a neighbour by more than "
+                    "--adaptive-tol (relative to the largest reflected radiance), re-solve, up to this many patches; "
+                    "0 = off")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  solve->add_option("--adaptive-tol", common.adaptive_tolerance, "Relative radiance jump that marks a patch for splitting")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  solve->add_option("--adaptive-rounds", common.adaptive_rounds, "Refinement rounds at most (solves = rounds + 1)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
 
   // info
   auto* info = app.add_subcommand("info", "Print patches, materials, bounding box, emitted power and validation warnings");

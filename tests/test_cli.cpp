@@ -256,3 +256,22 @@ TEST_F(Cli, MaxEdgeRefinesAndKeepsFaceId) {
   EXPECT_NEAR(total[0], 1.0, 1e-12);
   EXPECT_NEAR(total[1], 1.0, 1e-12);
 }
+
+// --adaptive-budget refines where the radiance jumps, within the budget, and keeps face_id.
+TEST_F(Cli, AdaptiveRefinementStaysWithinBudgetAndKeepsFaceId) {
+  const std::string out = path("a.vtu"), stats = path("a.json");
+  const CliRun r = run("solve " + kExamples + "cornell_box.obj -o " + out + " --stats " + stats +
+                       " --adaptive-budget 200 --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream in(stats);
+  const auto j = nlohmann::json::parse(in);
+  const auto rounds = j["adaptive"]["patches_per_round"].get<std::vector<int>>();
+  ASSERT_GE(rounds.size(), 2u) << j.dump(2);
+  for (size_t k = 1; k < rounds.size(); ++k) EXPECT_GT(rounds[k], rounds[k - 1]) << "round " << k;
+  EXPECT_LE(rounds.back(), 200);
+  auto grid = read_vtu(out);
+  EXPECT_EQ(grid->GetNumberOfCells(), rounds.back());
+  vtkDataArray* id = grid->GetCellData()->GetArray("face_id");
+  for (vtkIdType c = 0; c < grid->GetNumberOfCells(); ++c)
+    ASSERT_LT(id->GetTuple1(c), 16) << "cell " << c << ": the Cornell box has 16 input faces";
+}
