@@ -39,16 +39,26 @@ std::string rgb_str(const RGB& c, const char* f = "{:.4g}") {
 
 json rgb_json(const RGB& c) { return json::array({c[0], c[1], c[2]}); }
 
-// Reads, applies --materials, validates. Prints validation warnings unless quiet.
-mesh::Scene load(const CommonOptions& o, PhaseTimer& timer) {
+// Reads the scene file and applies --materials.
+mesh::PolygonSoup read_input(const CommonOptions& o, PhaseTimer& timer) {
   timer.start("load");
   mesh::PolygonSoup soup = io::read_soup(o.scene);
   if (!o.materials.empty()) io::apply_materials_json(soup, o.materials);
-  timer.start("prepare");
+  return soup;
+}
+
+mesh::PrepareOptions prepare_options(const CommonOptions& o) {
   mesh::PrepareOptions prep;
   prep.repair = !o.no_repair;
   prep.max_edge = o.max_edge;
-  mesh::Scene scene = mesh::prepare_and_build(soup, prep);
+  return prep;
+}
+
+// Reads, applies --materials, prepares, validates. Prints validation warnings unless quiet.
+mesh::Scene load(const CommonOptions& o, PhaseTimer& timer) {
+  const mesh::PolygonSoup soup = read_input(o, timer);
+  timer.start("prepare");
+  mesh::Scene scene = mesh::prepare_and_build(soup, prepare_options(o));
   timer.stop();
   for (const auto& w : scene.report.warnings) say(o, "lambert: warning: " + w);
   return scene;
@@ -295,15 +305,10 @@ int finish_solve(const CommonOptions& o, const mesh::Scene& scene, const solver:
 
 // --adaptive-budget: solve coarse, split patches whose radiance jumps to a neighbour, re-solve.
 int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseTimer& timer) {
-  timer.start("load");
-  mesh::PolygonSoup soup = io::read_soup(o.scene);
-  if (!o.materials.empty()) io::apply_materials_json(soup, o.materials);
+  mesh::PolygonSoup soup = read_input(o, timer);
   timer.start("prepare");
-  mesh::PrepareOptions prep;
-  prep.repair = !o.no_repair;
-  prep.max_edge = o.max_edge;
   mesh::Report prep_report;
-  soup = mesh::prepare(soup, prep, prep_report);
+  soup = mesh::prepare(soup, prepare_options(o), prep_report);
   timer.start("adaptive");
   solver::AdaptiveOptions ao;
   ao.max_patches = o.adaptive_budget;
