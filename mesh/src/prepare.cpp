@@ -1,6 +1,7 @@
 // mesh::prepare: weld, clean, orient (repair) and self-intersection / T-junction detection.
 // Refinement is in prepare_refine.cpp.
 #include "lambert/mesh/prepare.hpp"
+#include "union_find.hpp"
 
 #include <algorithm>
 #include <array>
@@ -112,18 +113,7 @@ double length_tolerance(const PolygonSoup& s, double relative) {
 
 // ---- 1. weld --------------------------------------------------------------------------------------
 
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  }
-  void unite(int a, int b) {  // the smaller index becomes the root: order-independent result
-    a = find(a), b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  }
-};
+using detail::UnionFind;
 
 void weld(PolygonSoup& s, double tol, Report& report) {
   const int nv = static_cast<int>(s.positions.size());

@@ -16,6 +16,7 @@
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
 #include "prepare_internal.hpp"
+#include "union_find.hpp"
 
 namespace lambert::mesh::detail {
 
@@ -47,21 +48,7 @@ void plane_basis(const std::vector<Vec3>& poly, const Vec3& n, Vec3& u, Vec3& v)
 
 enum class Kind { Skip, Tri, Quad, Poly, NonPlanar };
 
-struct UnionFind {
-  std::vector<int> parent;
-  int add() {
-    parent.push_back(static_cast<int>(parent.size()));
-    return parent.back();
-  }
-  int find(int x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  }
-  void unite(int a, int b) {
-    a = find(a), b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  }
-};
+using detail::UnionFind;
 
 // Longest-edge (Rivara LEPP) bisection of a planar triangle mesh until every edge is <= limit.
 // Edges on the outer boundary must already be <= limit (they are never split).

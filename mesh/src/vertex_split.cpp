@@ -7,23 +7,13 @@
 #include <vector>
 
 #include "lambert/mesh/scene.hpp"
+#include "union_find.hpp"
 
 namespace lambert::mesh {
 
 namespace {
 
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  }
-  void unite(int a, int b) {
-    a = find(a), b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  }
-};
+using detail::UnionFind;
 
 }  // namespace
 
