@@ -285,3 +285,107 @@ TEST(FormFactorAssembly, ProgressIsReportedAndThreadsRespected) {
   Options all;
   EXPECT_EQ((assemble(g, all).matrix() - F1).cwiseAbs().maxCoeff(), 0.0);  // deterministic across thread counts
 }
+
+// Fixed rules (the study's cost/accuracy knob). Unit cube, 4 x 4 quads per face: every entry has a closed
+// form, and touching pairs (shared edges) are the hard ones for fixed rules.
+TEST(FormFactorFixedRules, PointRuleIsTheTextbookCentroidFormula) {
+  const auto g = geometry(shapes::box(Vec3::Zero(), Vec3::Ones(), 2, true));
+  Options o;
+  o.rule = Rule::Point;
+  Stats st;
+  const auto F = assemble(g, o, &st).matrix();
+  // F_ij = cos_i cos_j A_j / (pi r^2) between centroids, evaluated here independently; 1e-13: rounding.
+  for (int i = 0; i < g.size(); ++i)
+    for (int j = 0; j < g.size(); ++j) {
+      if (i == j) continue;
+      const Vec3 d = g.centroid[j] - g.centroid[i];
+      const double r2 = d.squaredNorm(), ci = g.normal[i].dot(d), cj = -g.normal[j].dot(d);
+      const double expect = ci > 0 && cj > 0 ? ci * cj * g.area[j] / (M_PI * r2 * r2) : 0.0;
+      EXPECT_NEAR(F(i, j), expect, 1e-13) << "pair " << i << "," << j;
+    }
+  EXPECT_EQ(st.pairs_by_method.count("point"), 1u);
+}
+
+TEST(FormFactorFixedRules, GaussRuleErrorFallsWithOrder) {
+  const auto g = geometry(shapes::box(Vec3::Zero(), Vec3::Ones(), 4, true));
+  const auto exact = assemble(g).matrix();  // adaptive, within 1e-8 of the closed forms (CubeEntriesMatchClosedForms)
+  auto worst_error = [&](Rule rule, int order) {
+    Options o;
+    o.rule = rule;
+    o.order = order;
+    return (assemble(g, o).matrix() - exact).cwiseAbs().maxCoeff();
+  };
+  const double point = worst_error(Rule::Point, 1), g1 = worst_error(Rule::Gauss, 1),
+               g2 = worst_error(Rule::Gauss, 2), g4 = worst_error(Rule::Gauss, 4), g8 = worst_error(Rule::Gauss, 8);
+  // The worst entries are touching pairs, where the integrand is singular at the shared edge: errors fall
+  // with the order, slowly. Each step must gain at least 1.5x. (The point rule's worst entry, 0.12, is
+  // not comparable: its errors partly cancel on touching pairs, see docs/accuracy.md.)
+  EXPECT_GT(point, 1e-2);
+  EXPECT_GT(g1, 1.5 * g2) << "g1 " << g1 << " g2 " << g2;
+  EXPECT_GT(g2, 1.5 * g4) << "g2 " << g2 << " g4 " << g4;
+  EXPECT_GT(g4, 1.5 * g8) << "g4 " << g4 << " g8 " << g8;
+  EXPECT_LT(g8, 2e-3);
+}
+
+TEST(FormFactorFixedRules, ParseRuleRejectsUnknownNames) {
+  Rule r = Rule::Adaptive;
+  int order = 1;
+  parse_rule("gauss3", r, order);
+  EXPECT_EQ(r, Rule::Gauss);
+  EXPECT_EQ(order, 3);
+  EXPECT_EQ(to_string(r, order), "gauss3");
+  for (const char* bad : {"gauss0", "gauss9", "gauss", "Point", ""}) EXPECT_THROW(parse_rule(bad, r, order), InputError) << bad;
+  Options o;
+  o.rule = Rule::Gauss;
+  o.order = 9;
+  EXPECT_THROW(assemble(geometry(shapes::box(Vec3::Zero(), Vec3::Ones(), 1, true)), o), InputError);
+}
+
+// Reuse (adaptive refinement): a room whose floor quad 0 is split in four. Pairs of unchanged patches are
+// copied, the rest computed; the result must equal a fresh assembly of the refined geometry.
+TEST(FormFactorReuse, ReusedAssemblyEqualsFreshAssembly) {
+  shapes::Polygons coarse = shapes::room_with_block(3, 1, Vec3(0.3, 0.3, 0.3), Vec3(0.6, 0.6, 0.6));
+  shapes::Polygons fine;
+  std::vector<int> previous;
+  for (size_t p = 0; p < coarse.size(); ++p) {
+    if (p != 4) {  // keep: same polygon, same corner order
+      fine.push_back(coarse[p]);
+      previous.push_back(int(p));
+      continue;
+    }
+    const auto& q = coarse[p];
+    ASSERT_EQ(q.size(), 4u);
+    for (const auto& child : shapes::grid(q[0], q[1] - q[0], q[3] - q[0], 2, 2)) {
+      fine.push_back(child);
+      previous.push_back(-1);
+    }
+  }
+  const auto gc = geometry(coarse), gf = geometry(fine);
+  for (bool visibility : {false, true}) {
+    Options o;
+    o.visibility = visibility;
+    const DenseMatrixOperator Fc = assemble(gc, o);
+    Reuse reuse{&Fc, previous};
+    Options ro = o;
+    ro.reuse = &reuse;
+    Stats st;
+    const auto Fr = assemble(gf, ro, &st).matrix();
+    const auto Ff = assemble(gf, o).matrix();
+    const long long kept = (long long)coarse.size() - 1;
+    EXPECT_EQ(st.pairs_reused, kept * (kept - 1) / 2);
+    // Unoccluded: same rules on the same pairs, so equal to rounding (1e-13). With visibility the copied
+    // pairs carry the coarse run's ray estimate (seeded by patch index), so equal within the ray noise of
+    // 16 rays per pair; reused and fresh must then agree to 0.05 on every entry and exactly when unoccluded.
+    const double tol = visibility ? 0.05 : 1e-13;
+    for (int i = 0; i < gf.size(); ++i)
+      for (int j = 0; j < gf.size(); ++j)
+        ASSERT_NEAR(Fr(i, j), Ff(i, j), tol) << "pair " << i << "," << j << " visibility " << visibility;
+  }
+  std::vector<int> bad = previous;
+  bad[0] = bad[1];
+  const DenseMatrixOperator Fc = assemble(gc);
+  Reuse r{&Fc, bad};
+  Options o;
+  o.reuse = &r;
+  EXPECT_THROW(assemble(gf, o), InputError);
+}

@@ -164,7 +164,7 @@ bool behind_plane(const mesh::PatchGeometry& g, int a, int b) {
 }
 
 struct Counters {
-  long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0;
+  long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0, reused = 0, fixed = 0;
   std::array<long long, kMethodCount> by_method{};
   long long outside = 0;
   double recip = 0;
@@ -190,6 +190,8 @@ class Assembler {
 
  private:
   void tile(int bi, int bj, TileBuffers& b, Counters& c);
+  void fixed_rule(int i0, int i1, int j0, int j1, bool diagonal, Counters& c);
+  bool reused(int i, int j) const { return !old_.empty() && old_[i] >= 0 && old_[j] >= 0; }
   double visible_ratio(int s, int t, int m, TileBuffers& b, Counters& c) const;
 
   const mesh::PatchGeometry& g_;
@@ -201,7 +203,47 @@ class Assembler {
   detail::OccluderTree tree_;
   bool occlusion_ = false;
   int qk1_ = 1, qk2_ = 1, tk1_ = 1, tk2_ = 1;  // source samples qk1 x qk2, target samples tk1 x tk2
+  std::vector<int> old_;                        // Options::reuse->previous_index, or empty
+  std::vector<int> rule_off_;                   // Rule::Gauss: points of patch p in [rule_off_[p], rule_off_[p+1])
+  std::vector<std::array<double, 4>> rule_pts_;  // x, y, z, weight (summing to 1 per patch)
 };
+
+// Rule::Point and Rule::Gauss: each pair from the smaller patch (F of the larger by reciprocity in step 5).
+void Assembler::fixed_rule(int i0, int i1, int j0, int j1, bool diagonal, Counters& c) {
+  const detail::PatchData& P = prep_->P;
+  auto& F = *F_;
+  for (int i = i0; i < i1; ++i) {
+    if (diagonal) F(i, i) = 0;
+    for (int j = diagonal ? i + 1 : j0; j < j1; ++j) {
+      if (reused(i, j)) {
+        F(i, j) = o_.reuse->previous->matrix()(old_[i], old_[j]);
+        ++c.reused;
+        continue;
+      }
+      const bool swap = P.area[j] < P.area[i];
+      const int src = swap ? j : i, tgt = swap ? i : j;
+      double f = 0;
+      if (o_.rule == Rule::Point) {
+        const Vec3 d = P.c[tgt] - P.c[src];
+        const double r2 = d.squaredNorm(), ci = P.nrm[src].dot(d), cj = -P.nrm[tgt].dot(d);
+        if (ci > 0 && cj > 0 && r2 > 0) f = ci * cj * P.area[tgt] / (detail::kPi * r2 * r2);
+      } else {
+        const auto poly = g_.polygon(tgt);
+        for (int k = rule_off_[src]; k < rule_off_[src + 1]; ++k) {
+          const auto& X = rule_pts_[k];
+          f += X[3] * point_to_polygon(Vec3(X[0], X[1], X[2]), P.nrm[src], poly);
+        }
+      }
+      if (f > 0) {
+        ++c.fixed;
+      } else {
+        ++c.culled;
+        ++c.by_method[detail::kCulled];
+      }
+      F(i, j) = swap ? f * P.area[tgt] / P.area[src] : f;
+    }
+  }
+}
 
 double Assembler::visible_ratio(int s, int t, int m, TileBuffers& b, Counters& c) const {
   const int qk1 = qk1_ * m, qk2 = qk2_ * m, tk1 = tk1_ * m, tk2 = tk2_ * m;
@@ -268,12 +310,10 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   b.pair_i.clear(), b.pair_j.clear(), b.pair_swap.clear();
   long long counts[2] = {0, 0};
   b.rest_j.resize(kBlock + 16);
-  // 1. Classification, with tiers 0/1 evaluated in the same pass straight into row i of the matrix (F_ij).
-  for (int i = i0; i < i1; ++i) {
-    const int js = bi == bj ? i + 1 : j0;
-    if (bi == bj) F(i, i) = 0;
-    if (js >= j1) continue;
-    const int nrest = K.classify(s, i, js, j1, tol, &F(i, js), b.code.data(), b.rest_j.data(), counts);
+  // 1. Classification, with tiers 0/1 evaluated in the same pass straight into row i of the matrix (F_ij),
+  // over runs of pairs not copied from a previous assembly.
+  auto classify_run = [&](int i, int js, int je) {
+    const int nrest = K.classify(s, i, js, je, tol, &F(i, js), b.code.data(), b.rest_j.data(), counts);
     for (int r = 0; r < nrest; ++r) {
       const int code = b.code[r], j = b.rest_j[r];
       if (code == detail::kCodeSlow) {
@@ -337,6 +377,32 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
         for (size_t q = 0; q < cnt; ++q) b.lw[base + q] /= total;
       }
     }
+  };
+  if (o_.rule != Rule::Adaptive) {
+    fixed_rule(i0, i1, j0, j1, bi == bj, c);
+    b.pair_i.clear();
+    b.ss.clear();
+  }
+  for (int i = i0; i < i1 && o_.rule == Rule::Adaptive; ++i) {
+    const int js = bi == bj ? i + 1 : j0;
+    if (bi == bj) F(i, i) = 0;
+    if (js >= j1) continue;
+    if (old_.empty() || old_[i] < 0) {
+      classify_run(i, js, j1);
+      continue;
+    }
+    for (int j = js; j < j1;) {
+      if (old_[j] >= 0) {
+        F(i, j) = (*o_.reuse->previous).matrix()(old_[i], old_[j]);
+        ++c.reused;
+        ++j;
+        continue;
+      }
+      int je = j + 1;
+      while (je < j1 && old_[je] < 0) ++je;
+      classify_run(i, j, je);
+      j = je;
+    }
   }
   c.culled += counts[0];
   c.by_method[detail::kCulled] += counts[0];
@@ -394,13 +460,13 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
         if (!sub_clear && o_.cull_occlusion) {
           bool any = false;
           for (int i = si; i < si1 && !any; ++i)
-            for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1 && !any; ++j) any = F(i, j) > 0;
+            for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1 && !any; ++j) any = F(i, j) > 0 && !reused(i, j);
           if (!any) continue;
           sub_clear = clear_between(si, si1, sj, sj1);
         }
         for (int i = si; i < si1; ++i)
           for (int j = std::max(sj, bi == bj ? i + 1 : sj); j < sj1; ++j) {
-            if (!(F(i, j) > 0)) continue;
+            if (!(F(i, j) > 0) || reused(i, j)) continue;
             if (!sub_clear) {
               detail::Shaft sh = detail::make_shaft(pr.box[i], pr.box[j]);
               sh.ni = pr.P.nrm[i];
@@ -446,6 +512,23 @@ DenseMatrixOperator Assembler::run() {
   st_.pairs_total = (long long)n * (n - 1) / 2;
   if (!(o_.tolerance > 0) || !std::isfinite(o_.tolerance))
     throw InputError("form factors: tolerance must be a positive number (got " + std::to_string(o_.tolerance) + ")");
+  if (o_.rule == Rule::Gauss && (o_.order < 1 || o_.order > 8))
+    throw InputError("form factors: Gauss order must be in 1..8 (got " + std::to_string(o_.order) + ")");
+  if (o_.reuse) {
+    const Reuse& r = *o_.reuse;
+    const int m = r.previous ? r.previous->size() : -1;
+    if (m < 0 || r.previous_index.size() != size_t(n))
+      throw InputError("form factors: reuse needs the previous matrix and one index per patch (" + std::to_string(n) +
+                       "), got " + std::to_string(r.previous_index.size()));
+    std::vector<char> seen(size_t(std::max(m, 0)), 0);
+    for (int p = 0; p < n; ++p) {
+      const int q = r.previous_index[p];
+      if (q < -1 || q >= m || (q >= 0 && seen[q]++))
+        throw InputError("form factors: reuse index of patch " + std::to_string(p) + " is " + std::to_string(q) +
+                         " (out of range or repeated; previous matrix has " + std::to_string(m) + " patches)");
+    }
+    old_ = r.previous_index;
+  }
   if (o_.rays_per_pair < 1)
     throw InputError("form factors: rays per pair must be >= 1 (got " + std::to_string(o_.rays_per_pair) + ")");
   const std::size_t bytes = DenseMatrixOperator::bytes_for(std::size_t(n));
@@ -458,6 +541,15 @@ DenseMatrixOperator Assembler::run() {
                      (o_.max_bytes ? std::string(" (max_bytes)") : std::string(" (80% of physical memory)")) +
                      "; use fewer patches");
   prep_ = std::make_unique<Prepared>(g_);
+  if (o_.rule == Rule::Gauss) {
+    rule_off_.assign(1, 0);
+    for (int p = 0; p < n; ++p) {
+      const auto tris = std::span(g_.triangles).subspan(size_t(g_.triangle_offsets[p]),
+                                                        size_t(g_.triangle_offsets[p + 1] - g_.triangle_offsets[p]));
+      detail::outer_rule(g_.polygon(p), tris, o_.order, rule_pts_);
+      rule_off_.push_back(int(rule_pts_.size()));
+    }
+  }
   st_.seconds["setup"] = seconds_since(t_setup);
 
   const auto t_bvh = Clock::now();
@@ -539,6 +631,7 @@ DenseMatrixOperator Assembler::run() {
   const auto t_stats = Clock::now();
   std::vector<double> rows(n, 0.0);
   std::array<long long, kMethodCount> by{};
+  long long fixed = 0;
   for (const Counters& c : counters) {
     for (int i = 0; i < n; ++i) rows[i] += c.row_sum[i];
     st_.pairs_orientation_culled += c.culled;
@@ -546,12 +639,16 @@ DenseMatrixOperator Assembler::run() {
     st_.pairs_ray_tested += c.ray_tested;
     st_.rays_cast += c.rays;
     st_.pairs_over_tolerance += c.over_tolerance;
+    st_.pairs_reused += c.reused;
+    fixed += c.fixed;
     st_.entries_outside_unit += c.outside;
     st_.reciprocity_residual = std::max(st_.reciprocity_residual, c.recip);
     for (int m = 0; m < kMethodCount; ++m) by[m] += c.by_method[m];
   }
   for (int m = 0; m < kMethodCount; ++m)
     if (by[m]) st_.pairs_by_method[detail::kMethodNames[m]] = by[m];
+  if (fixed) st_.pairs_by_method[to_string(o_.rule, o_.order)] = fixed;
+  if (st_.pairs_reused) st_.pairs_by_method["reused"] = st_.pairs_reused;
   if (n > 0) {
     st_.row_sum_min = *std::min_element(rows.begin(), rows.end());
     st_.row_sum_max = *std::max_element(rows.begin(), rows.end());
@@ -564,6 +661,31 @@ DenseMatrixOperator Assembler::run() {
 }
 
 }  // namespace
+
+std::string to_string(Rule rule, int order) {
+  switch (rule) {
+    case Rule::Point: return "point";
+    case Rule::Gauss: return "gauss" + std::to_string(order);
+    default: return "adaptive";
+  }
+}
+
+void parse_rule(std::string_view text, Rule& rule, int& order) {
+  if (text == "adaptive") {
+    rule = Rule::Adaptive;
+    return;
+  }
+  if (text == "point") {
+    rule = Rule::Point;
+    return;
+  }
+  if (text.size() == 6 && text.substr(0, 5) == "gauss" && text[5] >= '1' && text[5] <= '8') {
+    rule = Rule::Gauss;
+    order = text[5] - '0';
+    return;
+  }
+  throw InputError("unknown form-factor rule '" + std::string(text) + "' (choose adaptive, point, gauss1..gauss8)");
+}
 
 DenseMatrixOperator assemble(const mesh::PatchGeometry& geometry, const Options& options, Stats* stats) {
   Stats local;

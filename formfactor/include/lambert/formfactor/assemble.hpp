@@ -22,6 +22,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lambert/formfactor/dense.hpp"
@@ -30,8 +31,28 @@
 
 namespace lambert::formfactor {
 
+// Fixed-cost rules for accuracy/cost studies and textbook comparisons (`tolerance` is then ignored):
+//   point  one point per patch: F_ij = cos_i cos_j A_j / (pi r^2) between the centroids (0 if either faces
+//          away); the classic baseline, badly wrong for near and touching pairs.
+//   gauss  order x order outer Gauss points on the source (the smaller patch), analytic (contour) inner
+//          integral over the target, no error control; order 1 = centroid-to-polygon (what a perfect hemicube
+//          converges to).
+enum class Rule { Adaptive, Point, Gauss };
+
+// Reuse of a previous assembly on a geometry sharing identical patches (adaptive refinement).
+struct Reuse {
+  const DenseMatrixOperator* previous = nullptr;
+  // Per patch of the new geometry: index of the identical patch (same polygon, same corner order) in the
+  // previous geometry, or -1 if new. Pairs of two reused patches are copied from `previous`, visibility
+  // included: the caller guarantees that the rest of the scene (the occluders) is unchanged.
+  std::vector<int> previous_index;
+};
+
 struct Options {
   double tolerance = 1e-8;  // absolute error bound on each unoccluded F_ij (see above); > 0
+  Rule rule = Rule::Adaptive;
+  int order = 1;            // Rule::Gauss: points per side of the source rule, 1..8
+  const Reuse* reuse = nullptr;  // null: compute every pair
   bool visibility = true;   // false: every pair is treated as unoccluded
   int rays_per_pair = 16;   // rays for a pair that may be occluded: sqrt(R) source points x R/sqrt(R) target points
   int threads = 0;          // 0 = all cores (or the caller's tbb::global_control); otherwise a task_arena of this size
@@ -56,12 +77,18 @@ struct Stats {
   double reciprocity_residual = 0;  // max |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) over stored entries
   long long entries_outside_unit = 0;  // F_ij < 0 or > 1 (never clamped); must be 0
   long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance
+  long long pairs_reused = 0;          // copied from Options::reuse (not computed, no rays)
   std::map<std::string, double> seconds;  // "setup", "bvh", "form_factors", "stats"
   std::size_t bytes = 0;                  // dense matrix size
 };
 
 // N x N matrix, F(i, j) from patch i to patch j, F(i, i) = 0. Throws lambert::InputError (with the needed
-// and allowed bytes) before allocating if N^2 * 8 bytes exceeds max_bytes, or if tolerance <= 0.
+// and allowed bytes) before allocating if N^2 * 8 bytes exceeds max_bytes, if tolerance <= 0, if the Gauss
+// order is outside 1..8, or if reuse does not match (index sizes, indices out of range or repeated).
+// "adaptive", "point", "gauss1".."gauss8" <-> (rule, order); parse throws InputError naming the choices.
+std::string to_string(Rule rule, int order);
+void parse_rule(std::string_view text, Rule& rule, int& order);
+
 DenseMatrixOperator assemble(const mesh::PatchGeometry& geometry, const Options& options = {}, Stats* stats = nullptr);
 
 // Aggregation to input faces when a face was split into several patches: F_IJ = sum_{i in I} A_i sum_{j in J}
