@@ -4,10 +4,19 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <utility>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "lambert/formfactor/kernel.hpp"
+#include "lambert/formfactor/visibility.hpp"
 
 namespace lambert::solver {
 namespace {
@@ -84,6 +93,22 @@ mesh::PolygonSoup soup_from_scene(const mesh::PolygonSoup& in, const mesh::Scene
 // Children added by splitting a face with m corners (see split_face).
 int added_by_split(int m) { return m == 3 ? 3 : m - 1; }
 
+// 3 points per triangle of patch p, at barycentric (2/3, 1/6, 1/6) and its permutations: strictly
+// inside the patch even when it is not convex, and spread towards its corners.
+void sample_points(const mesh::PatchGeometry& g, int p, std::vector<Vec3>& out) {
+  out.clear();
+  for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
+    const Vec3 &a = g.points[g.triangles[t][0]], &b = g.points[g.triangles[t][1]], &c = g.points[g.triangles[t][2]];
+    out.push_back((4 * a + b + c) / 6);
+    out.push_back((a + 4 * b + c) / 6);
+    out.push_back((a + b + 4 * c) / 6);
+  }
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 }  // namespace
 
 std::vector<double> jump_indicator(const mesh::Scene& scene, const ColorField& radiance) {
@@ -130,6 +155,64 @@ std::vector<double> jump_indicator(const mesh::Scene& scene, const ColorField& r
   return ind;
 }
 
+std::vector<double> direct_indicator(const mesh::Scene& scene, const ColorField& radiance,
+                                     const formfactor::Visibility* caster) {
+  const int n = scene.patches();
+  std::vector<double> ind(n, 0.0);
+  if (n == 0) return ind;
+  const auto& g = scene.geometry;
+  const ColorField Le = scene.emission_field();
+  const double scale = (radiance - Le).maxCoeff();
+  if (!(scale > 0)) return ind;
+  std::vector<int> emitters;
+  for (int e = 0; e < n; ++e)
+    if (Le.row(e).maxCoeff() > 0) emitters.push_back(e);
+  if (emitters.empty()) return ind;
+  std::unique_ptr<formfactor::Visibility> own;
+  if (!caster) {
+    const std::vector<int> occ = formfactor::potential_occluders(g);
+    if (!occ.empty()) own = formfactor::make_embree_visibility(g, occ);
+    caster = own.get();  // null: nothing can block anything
+  }
+  std::vector<std::vector<Vec3>> targets(n);
+  for (int e : emitters) sample_points(g, e, targets[e]);
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& r) {
+    std::vector<Vec3> xs, from;
+    std::vector<std::uint8_t> hidden;
+    for (int p = r.begin(); p < r.end(); ++p) {
+      const RGB rho = scene.reflectance(p);
+      if (!(rho.maxCoeff() > 0)) continue;
+      sample_points(g, p, xs);
+      RGB lo = RGB::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+      for (const Vec3& x : xs) {
+        RGB D = RGB::Zero();
+        for (int e : emitters) {
+          if (e == p) continue;
+          const double F = formfactor::point_to_polygon(x, g.normal[p], g.polygon(e));
+          if (!(F > 0)) continue;
+          double visible = 1;
+          if (caster) {
+            const auto& to = targets[e];
+            from.assign(to.size(), x);
+            hidden.assign(to.size(), 0);
+            caster->occluded(from, to, p, e, hidden);
+            long blocked = 0;
+            for (auto h : hidden) blocked += h;
+            visible = 1 - static_cast<double>(blocked) / static_cast<double>(to.size());
+          }
+          D += F * visible * Le.row(e).transpose().array();
+        }
+        D *= rho;
+        lo = lo.min(D);
+        hi = hi.max(D);
+      }
+      ind[p] = (hi - lo).maxCoeff() / scale;
+    }
+  });
+  return ind;
+}
+
 AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOptions& options) {
   if (options.max_patches < 1)
     throw InputError("adaptive refinement: max_patches must be >= 1, got " + std::to_string(options.max_patches));
@@ -147,26 +230,87 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
   for (size_t k = 0; k < soup.faces.size(); ++k)
     if (soup.faces[k].origin < 0) soup.faces[k].origin = static_cast<int>(k);
 
-  ColorField guess;  // previous radiance mapped to the current patches
+  // New corners are welded by exact position to any vertex already there (the input's first copy).
+  std::map<std::array<double, 3>, int> vertex_at;
+  auto add_vertex = [&](mesh::PolygonSoup& s, const Vec3& x) {
+    auto [it, added] = vertex_at.try_emplace({x.x(), x.y(), x.z()}, static_cast<int>(s.positions.size()));
+    if (added) {
+      s.positions.push_back(x);
+      s.position_lines.push_back(0);
+    }
+    return it->second;
+  };
+
+  ColorField guess;                       // previous radiance mapped to the current patches
+  formfactor::DenseMatrixOperator F_old;  // previous round's matrix
+  mesh::PatchGeometry g_old;
+  std::vector<int> kept_from;             // per face of `soup`: its face in the previous round, -1 if new
   for (int round = 0;; ++round) {
     mesh::Scene scene = mesh::build_scene(soup);
     if (scene.patches() != static_cast<int>(soup.faces.size())) {
+      // build_scene triangulated non-planar faces: continue on its patches (only in round 0, since
+      // splits of planar faces are planar).
       soup = soup_from_scene(soup, scene);
       scene = mesh::build_scene(soup);
+      kept_from.clear();
+      vertex_at.clear();
     }
     const int n = scene.patches();
-    if (round == 0 && n > options.max_patches)
-      throw InputError(input.file + ": " + std::to_string(n) + " patches before refinement, above max_patches = " +
-                       std::to_string(options.max_patches));
+    if (round == 0) {
+      if (n > options.max_patches)
+        throw InputError(input.file + ": " + std::to_string(n) + " patches before refinement, above max_patches = " +
+                         std::to_string(options.max_patches));
+    }
+    if (vertex_at.empty())
+      for (size_t v = 0; v < soup.positions.size(); ++v)
+        vertex_at.try_emplace({soup.positions[v].x(), soup.positions[v].y(), soup.positions[v].z()},
+                              static_cast<int>(v));
     result.patches_per_round.push_back(n);
+    AdaptiveRound info;
+    info.patches = n;
+    info.pairs_total = static_cast<long long>(n) * (n - 1) / 2;
 
-    const formfactor::DenseMatrixOperator F = formfactor::assemble(scene.geometry, options.ff);
+    // Reuse: a kept face's patch must have exactly its old polygon (checked, not assumed).
+    formfactor::Options ffo = options.ff;
+    formfactor::Reuse reuse;
+    if (options.reuse && static_cast<int>(kept_from.size()) == n && F_old.size() == g_old.size()) {
+      reuse.previous = &F_old;
+      reuse.previous_index.assign(n, -1);
+      for (int p = 0; p < n; ++p) {
+        const int q = kept_from[p];
+        if (q < 0) continue;
+        const auto a = scene.geometry.polygon(p), b = g_old.polygon(q);
+        if (a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin())) reuse.previous_index[p] = q;
+      }
+      ffo.reuse = &reuse;
+    } else {
+      ffo.reuse = nullptr;
+    }
+    auto t0 = std::chrono::steady_clock::now();
+    formfactor::Stats st;
+    formfactor::DenseMatrixOperator F = formfactor::assemble(scene.geometry, ffo, &st);
+    info.assemble_seconds = seconds_since(t0);
+    info.pairs_reused = st.pairs_reused;
+    F_old = formfactor::DenseMatrixOperator();  // free it before the solve
+
+    t0 = std::chrono::steady_clock::now();
     Options so = options.solve;
     so.initial_guess = guess.rows() == n ? guess : ColorField();
     Solution sol = solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field(), so);
+    info.solve_seconds = seconds_since(t0);
 
-    const std::vector<double> ind = jump_indicator(scene, sol.radiance);
-    result.max_indicator.push_back(ind.empty() ? 0.0 : *std::max_element(ind.begin(), ind.end()));
+    t0 = std::chrono::steady_clock::now();
+    std::vector<double> ind = jump_indicator(scene, sol.radiance);
+    if (!ind.empty()) info.max_jump = *std::max_element(ind.begin(), ind.end());
+    if (options.direct_indicator) {
+      const std::vector<double> d = direct_indicator(scene, sol.radiance);
+      for (int p = 0; p < n; ++p) {
+        info.max_direct = std::max(info.max_direct, d[p]);
+        ind[p] = std::max(ind[p], d[p]);
+      }
+    }
+    info.indicator_seconds = seconds_since(t0);
+    result.max_indicator.push_back(std::max(info.max_jump, info.max_direct));
 
     std::vector<int> above;
     for (int p = 0; p < n; ++p)
@@ -189,6 +333,9 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
       ++chosen;
     }
     result.not_splittable = not_splittable;
+    info.marked = static_cast<int>(above.size());
+    info.split = chosen;
+    result.rounds.push_back(info);
 
     const bool last = above.empty() || chosen == 0 || round == options.max_rounds;
     if (last) {
@@ -202,23 +349,17 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
     // Split the marked faces; children take their parent's place and its radiance as a start.
     mesh::PolygonSoup next = soup;
     next.faces.clear();
-    std::map<std::pair<int, int>, int> midpoint;
-    auto mid = [&](int a, int b) {
-      const std::pair<int, int> key{std::min(a, b), std::max(a, b)};
-      auto [it, added] = midpoint.try_emplace(key, static_cast<int>(next.positions.size()));
-      if (added) {
-        next.positions.push_back(0.5 * (next.positions[a] + next.positions[b]));
-        next.position_lines.push_back(0);
-      }
-      return it->second;
-    };
     next.position_lines.resize(next.positions.size(), 0);
+    // 0.5 (a + b) is symmetric in a and b, so both faces of an edge compute the same point.
+    auto mid = [&](int a, int b) { return add_vertex(next, 0.5 * (next.positions[a] + next.positions[b])); };
     std::vector<int> parent;
+    kept_from.clear();
     for (int p = 0; p < n; ++p) {
       const mesh::SoupFace& f = soup.faces[p];
       if (!split[p]) {
         next.faces.push_back(f);
         parent.push_back(p);
+        kept_from.push_back(p);
         continue;
       }
       const std::vector<int>& v = f.vertices;
@@ -231,9 +372,7 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
       } else {
         Vec3 c = Vec3::Zero();
         for (int i : v) c += next.positions[i];
-        const int ci = static_cast<int>(next.positions.size());
-        next.positions.push_back(c / m);
-        next.position_lines.push_back(0);
+        const int ci = add_vertex(next, c / m);
         for (int i = 0; i < m; ++i) children.push_back({v[i], e[i], ci, e[(i + m - 1) % m]});
       }
       for (auto& cv : children) {
@@ -241,13 +380,18 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
         child.vertices = std::move(cv);
         next.faces.push_back(std::move(child));
         parent.push_back(p);
+        kept_from.push_back(-1);
       }
     }
     guess.resize(static_cast<Eigen::Index>(parent.size()), 3);
     for (size_t k = 0; k < parent.size(); ++k) guess.row(static_cast<Eigen::Index>(k)) = sol.radiance.row(parent[k]);
+    if (options.reuse) {
+      F_old = std::move(F);
+      g_old = scene.geometry;
+    }
     soup = std::move(next);
   }
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.seconds = seconds_since(start);
   return result;
 }
 
