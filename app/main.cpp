@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "study.hpp"
 #include "lambert/formfactor/assemble.hpp"
 #include "lambert/solver/solve.hpp"
 #include "lambert/mesh/types.hpp"
@@ -121,6 +122,16 @@ int main(int argc, char** argv) {
   furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres");
   furnace->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
 
+  // study
+  app::StudyOptions so;
+  auto* study = app.add_subcommand(
+      "study", "Accuracy against cost for every knob on cases with exact answers: writes DIR/study.csv "
+               "(plots: scripts/plot_study.py; see docs/accuracy.md)");
+  study->add_option("--out", so.out, "Output directory")->capture_default_str();
+  study->add_flag("--quick", so.quick, "The small grid CI runs (under 2 minutes on 2 cores)");
+  study->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  study->add_flag("--quiet,-q", so.quiet, "No per-run lines on stderr");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -136,6 +147,7 @@ int main(int argc, char** argv) {
     if (ff->parsed()) return app::run_formfactors(common);
     if (sphere->parsed()) return app::run_verify_sphere(vo, common);
     if (furnace->parsed()) return app::run_verify_furnace(vo, common);
+    if (study->parsed()) return app::run_study(so);
   } catch (const InputError& e) {
     std::fprintf(stderr, "lambert: error: %s\n", e.what());
     return 1;

@@ -165,6 +165,7 @@ bool behind_plane(const mesh::PatchGeometry& g, int a, int b) {
 
 struct Counters {
   long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0, reused = 0, fixed = 0;
+  double tile_seconds = 0, visibility_seconds = 0;  // thread time in tiles, and in their visibility step
   std::array<long long, kMethodCount> by_method{};
   long long outside = 0;
   double recip = 0;
@@ -240,7 +241,7 @@ void Assembler::fixed_rule(int i0, int i1, int j0, int j1, bool diagonal, Counte
         ++c.culled;
         ++c.by_method[detail::kCulled];
       }
-      F(i, j) = swap ? f * P.area[tgt] / P.area[src] : f;
+      F(i, j) = swap ? f * P.area[src] / P.area[tgt] : f;  // A_i F_ij = A_j F_ji
     }
   }
 }
@@ -438,6 +439,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   }
   // 4. Visibility: only for pairs whose segments may meet an occluder. Shafts are tested hierarchically:
   // the whole tile, then 8 x 8 sub-tiles, then single pairs. The visible fraction is symmetric.
+  const auto t_visibility = Clock::now();
   if (occlusion_) {
     auto block_box = [&](int a0, int a1) {
       detail::Box bx;
@@ -489,6 +491,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
           }
       }
   }
+  c.visibility_seconds += seconds_since(t_visibility);
   // 5. The other direction by reciprocity, as a blocked transpose (the I x J block is still in cache), with
   // the row sums and checks of what is stored.
   b.row.assign(size_t(kBlock), 0.0);
@@ -543,10 +546,14 @@ DenseMatrixOperator Assembler::run() {
   prep_ = std::make_unique<Prepared>(g_);
   if (o_.rule == Rule::Gauss) {
     rule_off_.assign(1, 0);
+    std::vector<std::array<int, 3>> local;  // the patch's triangles, indexing its own corners
     for (int p = 0; p < n; ++p) {
-      const auto tris = std::span(g_.triangles).subspan(size_t(g_.triangle_offsets[p]),
-                                                        size_t(g_.triangle_offsets[p + 1] - g_.triangle_offsets[p]));
-      detail::outer_rule(g_.polygon(p), tris, o_.order, rule_pts_);
+      local.clear();
+      for (int k = g_.triangle_offsets[p]; k < g_.triangle_offsets[p + 1]; ++k) {
+        const auto& T = g_.triangles[size_t(k)];
+        local.push_back({T[0] - g_.offsets[p], T[1] - g_.offsets[p], T[2] - g_.offsets[p]});
+      }
+      detail::outer_rule(g_.polygon(p), local, o_.order, rule_pts_);
       rule_off_.push_back(int(rule_pts_.size()));
     }
   }
@@ -607,7 +614,9 @@ DenseMatrixOperator Assembler::run() {
   auto body = [&](const tbb::blocked_range<size_t>& r) {
     Counters& c = counters.local();
     TileBuffers& b = buffers.local();
+    const auto t0 = Clock::now();
     for (size_t t = r.begin(); t != r.end(); ++t) tile(tiles[t].first, tiles[t].second, b, c);
+    c.tile_seconds += seconds_since(t0);
     const long long d = done.fetch_add((long long)r.size()) + (long long)r.size();
     if (o_.progress) {
       std::unique_lock lock(progress_mutex, std::try_to_lock);
@@ -632,7 +641,10 @@ DenseMatrixOperator Assembler::run() {
   std::vector<double> rows(n, 0.0);
   std::array<long long, kMethodCount> by{};
   long long fixed = 0;
+  double tile_seconds = 0, visibility_seconds = 0;
   for (const Counters& c : counters) {
+    tile_seconds += c.tile_seconds;
+    visibility_seconds += c.visibility_seconds;
     for (int i = 0; i < n; ++i) rows[i] += c.row_sum[i];
     st_.pairs_orientation_culled += c.culled;
     st_.pairs_shaft_culled += c.shaft_culled;
@@ -657,6 +669,8 @@ DenseMatrixOperator Assembler::run() {
     st_.row_sum_mean = sum / n;
   }
   st_.seconds["stats"] = seconds_since(t_stats);
+  // Wall-time share of visibility inside "form_factors" (integration and visibility interleave per tile).
+  st_.seconds["visibility"] = tile_seconds > 0 ? st_.seconds["form_factors"] * visibility_seconds / tile_seconds : 0.0;
   return DenseMatrixOperator(std::move(F));
 }
 

@@ -296,6 +296,13 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
     t0 = std::chrono::steady_clock::now();
     Options so = options.solve;
     so.initial_guess = guess.rows() == n ? guess : ColorField();
+    if (so.initial_guess.rows() == n) {
+      // A patch that sees nothing (e.g. floor under a block) has L = Le exactly; a parent's value as its
+      // start would leave round-off (tiny negative radiances) there.
+      const ColorField Le = scene.emission_field();
+      for (int p = 0; p < n; ++p)
+        if (F.row_sum(p) == 0) so.initial_guess.row(p) = Le.row(p);
+    }
     Solution sol = solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field(), so);
     info.solve_seconds = seconds_since(t0);
 

@@ -29,17 +29,17 @@ struct Run {
   std::vector<double> row_sums;
 };
 
-Run assemble_and_solve(const mesh::shapes::Polygons& polygons, const formfactor::Options& ff,
+Run assemble_and_solve(mesh::PatchGeometry geometry, const formfactor::Options& ff,
                        const std::function<void(const mesh::PatchGeometry&, ColorField&, ColorField&)>& fields,
                        const Options& so, VerifyReport& r) {
   Run run;
   auto t = Clock::now();
-  run.geometry = mesh::PatchGeometry::from_polygons(polygons);
+  run.geometry = std::move(geometry);
   r.seconds["mesh"] = since(t);
   r.patches = run.geometry.size();
 
   t = Clock::now();
-  auto F = std::make_shared<formfactor::DenseMatrixOperator>(formfactor::assemble(run.geometry, ff));
+  auto F = std::make_shared<formfactor::DenseMatrixOperator>(formfactor::assemble(run.geometry, ff, &r.ff));
   r.seconds["form_factors"] = since(t);
 
   t = Clock::now();
@@ -65,18 +65,7 @@ Run assemble_and_solve(const mesh::shapes::Polygons& polygons, const formfactor:
 }
 
 void compare(const Run& run, const Eigen::VectorXd& exact, VerifyReport& r) {
-  const auto L = run.solution.radiance.col(0);
-  double sum = 0;
-  for (Eigen::Index i = 0; i < exact.size(); ++i) {
-    const double diff = std::abs(L[i] - exact[i]);
-    const double e = exact[i] > 0 ? diff / exact[i] : (diff == 0 ? 0.0 : INFINITY);
-    sum += e;
-    if (r.worst_patch < 0 || e > r.max_rel_error) {
-      r.max_rel_error = e;
-      r.worst_patch = int(i);
-    }
-  }
-  r.mean_rel_error = exact.size() ? sum / double(exact.size()) : 0;
+  relative_error(run.solution.radiance.col(0), exact, run.geometry.area, r);
   r.passed = r.converged && r.max_rel_error <= r.tolerance;
 }
 
@@ -108,9 +97,7 @@ std::string table(const VerifyReport& r, const std::string& exact_line, const st
   return t;
 }
 
-}  // namespace
-
-VerifyReport verify_sphere(const SphereCase& c) {
+void check_sphere(const SphereCase& c) {
   require(c.subdivisions >= 0 && c.subdivisions <= 7, "subdivisions must be in [0, 7], got " + std::to_string(c.subdivisions));
   require(c.radius > 0 && std::isfinite(c.radius), "radius must be positive");
   require(c.rho >= 0 && c.rho < 1, "rho must be in [0, 1), got " + std::to_string(c.rho));
@@ -118,60 +105,129 @@ VerifyReport verify_sphere(const SphereCase& c) {
   require(c.emission == "uniform" || c.emission == "cap" || c.emission == "linear",
           "emission must be uniform, cap or linear, got '" + c.emission + "'");
   require(c.tolerance >= 0, "tolerance must be >= 0");
-  const auto start = Clock::now();
+}
 
+void check_furnace(const FurnaceCase& c) {
+  require(c.divisions >= 1 && c.divisions <= 64, "divisions must be in [1, 64], got " + std::to_string(c.divisions));
+  require(c.block_divisions >= 1 && c.block_divisions <= 64,
+          "block divisions must be in [1, 64], got " + std::to_string(c.block_divisions));
+  require(c.rho >= 0 && c.rho < 1, "rho must be in [0, 1), got " + std::to_string(c.rho));
+  require(c.E0 > 0 && std::isfinite(c.E0), "E0 must be positive");
+  require(c.rays_per_pair >= 1, "rays per pair must be >= 1");
+  require(c.tolerance >= 0, "tolerance must be >= 0");
+  require(c.size > 0 && std::isfinite(c.size), "size must be positive");
+  require(c.speck >= 0 && c.speck < 0.1 * c.size, "speck must be in [0, 0.1 size)");
+}
+
+formfactor::Options ff_options(double tolerance, formfactor::Rule rule, int order) {
+  formfactor::Options ff;
+  ff.tolerance = tolerance;
+  ff.rule = rule;
+  ff.order = order;
+  return ff;
+}
+
+}  // namespace
+
+mesh::PatchGeometry sphere_geometry(const SphereCase& c) {
+  check_sphere(c);
+  return mesh::PatchGeometry::from_polygons(mesh::shapes::icosphere(c.subdivisions, c.radius, true));
+}
+
+void sphere_fields(const SphereCase& c, const mesh::PatchGeometry& g, ColorField& rho, ColorField& Le) {
+  const double R = c.radius;
+  const int n = g.size();
+  rho.resize(n, 3);
+  Le.resize(n, 3);
+  for (int i = 0; i < n; ++i) {
+    const Vec3& x = g.centroid[i];
+    double le = c.E0, rh = c.rho;
+    if (c.emission == "cap") le = x.z() > 0.5 * R ? c.E0 : 0.0;
+    if (c.emission == "linear") {
+      le = c.E0 * (1 + x.z() / R) / 2;
+      rh = c.rho * (0.75 + 0.25 * x.x() / R);
+    }
+    rho.row(i).setConstant(rh);
+    Le.row(i).setConstant(le);
+  }
+}
+
+Eigen::VectorXd sphere_exact(const SphereCase& c, const mesh::PatchGeometry& g, std::string* basis) {
+  const int n = g.size();
+  Eigen::VectorXd exact(n);
+  if (c.emission == "uniform") {
+    exact.setConstant(c.E0 / (1 - c.rho));
+    if (basis) *basis = fmt::format("L = E0/(1-rho) = {:.10g} (closed polyhedron: exact discrete answer)", exact[0]);
+    return exact;
+  }
+  ColorField rho, Le;
+  sphere_fields(c, g, rho, Le);
+  double area = 0, Ebar = 0, rhobar = 0;
+  for (int i = 0; i < n; ++i) {
+    area += g.area[i];
+    Ebar += g.area[i] * Le(i, 0);
+    rhobar += g.area[i] * rho(i, 0);
+  }
+  Ebar /= area;
+  rhobar /= area;
+  for (int i = 0; i < n; ++i) exact[i] = Le(i, 0) + rho(i, 0) * Ebar / (1 - rhobar);
+  // Mean edge length of the icosphere relative to R: the icosahedron's edge is 1.0515 R, halved per level.
+  const double h = 1.0514622242382672 / std::pow(2.0, c.subdivisions);
+  if (basis)
+    *basis = fmt::format("L = Le + rho Ebar/(1-rhobar), Ebar = {:.6g}, rhobar = {:.6g} (continuum limit, O(h), h = {:.3g} R)",
+                         Ebar, rhobar, h);
+  return exact;
+}
+
+mesh::PatchGeometry furnace_geometry(const FurnaceCase& c) {
+  check_furnace(c);
+  mesh::shapes::Polygons p = mesh::shapes::room_with_block(c.divisions, c.block_divisions);
+  if (c.speck > 0) {
+    const double e = c.speck / c.size;
+    for (auto& q : mesh::shapes::box(Vec3::Constant(0.2), Vec3::Constant(0.2 + e), 1, false)) p.push_back(std::move(q));
+  }
+  for (auto& poly : p)
+    for (Vec3& v : poly) v *= c.size;
+  return mesh::PatchGeometry::from_polygons(p);
+}
+
+void relative_error(const Eigen::VectorXd& L, const Eigen::VectorXd& exact, const std::vector<double>& area,
+                    VerifyReport& r) {
+  double sum = 0, sq = 0, total_area = 0;
+  r.max_rel_error = 0;
+  r.worst_patch = -1;
+  for (Eigen::Index i = 0; i < exact.size(); ++i) {
+    const double diff = std::abs(L[i] - exact[i]);
+    const double e = exact[i] > 0 ? diff / exact[i] : (diff == 0 ? 0.0 : INFINITY);
+    sum += e;
+    sq += area[size_t(i)] * e * e;
+    total_area += area[size_t(i)];
+    if (r.worst_patch < 0 || e > r.max_rel_error) {
+      r.max_rel_error = e;
+      r.worst_patch = int(i);
+    }
+  }
+  r.mean_rel_error = exact.size() ? sum / double(exact.size()) : 0;
+  r.rms_rel_error = total_area > 0 ? std::sqrt(sq / total_area) : 0;
+}
+
+VerifyReport verify_sphere(const SphereCase& c) {
+  const auto start = Clock::now();
   VerifyReport r;
   r.name = fmt::format("sphere K={} {} rho={}", c.subdivisions, c.emission, c.rho);
-  const double R = c.radius;
-  auto fields = [&](const mesh::PatchGeometry& g, ColorField& rho, ColorField& Le) {
-    const int n = g.size();
-    rho.resize(n, 3);
-    Le.resize(n, 3);
-    for (int i = 0; i < n; ++i) {
-      const Vec3& x = g.centroid[i];
-      double le = c.E0, rh = c.rho;
-      if (c.emission == "cap") le = x.z() > 0.5 * R ? c.E0 : 0.0;
-      if (c.emission == "linear") {
-        le = c.E0 * (1 + x.z() / R) / 2;
-        rh = c.rho * (0.75 + 0.25 * x.x() / R);
-      }
-      rho.row(i).setConstant(rh);
-      Le.row(i).setConstant(le);
-    }
-  };
-  formfactor::Options ff;
-  ff.tolerance = c.ff_tolerance;
   Options so;
   so.method = c.method;
   so.tolerance = c.solve_tolerance;
-  Run run = assemble_and_solve(mesh::shapes::icosphere(c.subdivisions, R, true), ff, fields, so, r);
-
-  const mesh::PatchGeometry& g = run.geometry;
-  const int n = g.size();
-  ColorField rho, Le;
-  fields(g, rho, Le);
-  Eigen::VectorXd exact(n);
+  auto fields = [&](const mesh::PatchGeometry& g, ColorField& rho, ColorField& Le) { sphere_fields(c, g, rho, Le); };
+  Run run = assemble_and_solve(sphere_geometry(c), ff_options(c.ff_tolerance, c.ff_rule, c.ff_order), fields, so, r);
   std::string exact_line, basis;
+  const Eigen::VectorXd exact = sphere_exact(c, run.geometry, &exact_line);
   if (c.emission == "uniform") {
-    exact.setConstant(c.E0 / (1 - c.rho));
-    exact_line = fmt::format("L = E0/(1-rho) = {:.10g} (closed polyhedron: exact discrete answer)", exact[0]);
     r.error_bound = row_sum_bound(c.rho, r.row_sum_min, r.row_sum_max);
     r.tolerance = c.tolerance > 0 ? c.tolerance : 1e-6;
     basis = c.tolerance > 0 ? "given" : "exact discrete answer: form-factor and solver error only";
   } else {
-    double area = 0, Ebar = 0, rhobar = 0;
-    for (int i = 0; i < n; ++i) {
-      area += g.area[i];
-      Ebar += g.area[i] * Le(i, 0);
-      rhobar += g.area[i] * rho(i, 0);
-    }
-    Ebar /= area;
-    rhobar /= area;
-    for (int i = 0; i < n; ++i) exact[i] = Le(i, 0) + rho(i, 0) * Ebar / (1 - rhobar);
-    // Mean edge length of the icosphere relative to R: the icosahedron's edge is 1.0515 R, halved per level.
     const double h = 1.0514622242382672 / std::pow(2.0, c.subdivisions);
-    exact_line = fmt::format("L = Le + rho Ebar/(1-rhobar), Ebar = {:.6g}, rhobar = {:.6g} (continuum limit, O(h), h = {:.3g} R)",
-                             Ebar, rhobar, h);
     r.tolerance = c.tolerance > 0 ? c.tolerance : 0.2 * h;
     basis = c.tolerance > 0 ? "given" : "0.2 h/R: >= 3x the measured O(h) discretisation error";
   }
@@ -182,13 +238,6 @@ VerifyReport verify_sphere(const SphereCase& c) {
 }
 
 VerifyReport verify_furnace(const FurnaceCase& c) {
-  require(c.divisions >= 1 && c.divisions <= 64, "divisions must be in [1, 64], got " + std::to_string(c.divisions));
-  require(c.block_divisions >= 1 && c.block_divisions <= 64,
-          "block divisions must be in [1, 64], got " + std::to_string(c.block_divisions));
-  require(c.rho >= 0 && c.rho < 1, "rho must be in [0, 1), got " + std::to_string(c.rho));
-  require(c.E0 > 0 && std::isfinite(c.E0), "E0 must be positive");
-  require(c.rays_per_pair >= 1, "rays per pair must be >= 1");
-  require(c.tolerance >= 0, "tolerance must be >= 0");
   const auto start = Clock::now();
 
   VerifyReport r;
@@ -197,13 +246,12 @@ VerifyReport verify_furnace(const FurnaceCase& c) {
     rho = ColorField::Constant(g.size(), 3, c.rho);
     Le = ColorField::Constant(g.size(), 3, c.E0);
   };
-  formfactor::Options ff;
-  ff.tolerance = c.ff_tolerance;
+  formfactor::Options ff = ff_options(c.ff_tolerance, c.ff_rule, c.ff_order);
   ff.rays_per_pair = c.rays_per_pair;
   Options so;
   so.method = c.method;
   so.tolerance = c.solve_tolerance;
-  Run run = assemble_and_solve(mesh::shapes::room_with_block(c.divisions, c.block_divisions), ff, fields, so, r);
+  Run run = assemble_and_solve(furnace_geometry(c), ff, fields, so, r);
   const Eigen::VectorXd exact = Eigen::VectorXd::Constant(run.geometry.size(), c.E0 / (1 - c.rho));
   r.error_bound = row_sum_bound(c.rho, r.row_sum_min, r.row_sum_max);
   r.tolerance = c.tolerance > 0 ? c.tolerance : std::max(5e-4 * c.rho / (1 - c.rho), 1e-9);

@@ -78,7 +78,9 @@ struct Stats {
   long long entries_outside_unit = 0;  // F_ij < 0 or > 1 (never clamped); must be 0
   long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance
   long long pairs_reused = 0;          // copied from Options::reuse (not computed, no rays)
-  std::map<std::string, double> seconds;  // "setup", "bvh", "form_factors", "stats"
+  // "setup", "bvh", "form_factors" (integration + visibility), "visibility" (its share of form_factors,
+  // from thread times), "stats"
+  std::map<std::string, double> seconds;
   std::size_t bytes = 0;                  // dense matrix size
 };
 

@@ -4,6 +4,8 @@
 #include <map>
 #include <string>
 
+#include "lambert/formfactor/assemble.hpp"
+#include "lambert/mesh/geometry.hpp"
 #include "lambert/solver/solve.hpp"
 
 namespace lambert::solver {
@@ -28,6 +30,8 @@ struct SphereCase {
   double E0 = 1;              // W m^-2 sr^-1
   Method method = Method::Auto;
   double ff_tolerance = 1e-10;     // formfactor::Options::tolerance
+  formfactor::Rule ff_rule = formfactor::Rule::Adaptive;  // formfactor::Options::rule / order
+  int ff_order = 1;
   double solve_tolerance = 1e-10;  // Options::tolerance
   double tolerance = 0;       // pass threshold on the max relative error; 0 = the case's default above
 };
@@ -47,8 +51,14 @@ struct FurnaceCase {
   Method method = Method::Auto;
   double ff_tolerance = 1e-8;      // formfactor::Options::tolerance
   int rays_per_pair = 256;         // formfactor::Options::rays_per_pair
+  formfactor::Rule ff_rule = formfactor::Rule::Adaptive;  // formfactor::Options::rule / order
+  int ff_order = 1;
   double solve_tolerance = 1e-10;  // Options::tolerance
   double tolerance = 0;       // pass threshold on the max relative error; 0 = the default above
+  // Scale: the room is [0, size]^3 (block scaled with it). speck > 0 adds a cube of that edge (outward, one
+  // quad per face) floating at 0.2 size: a closed scene spanning speck..size metres, same exact answer.
+  double size = 1;
+  double speck = 0;
 };
 
 struct VerifyReport {
@@ -63,11 +73,23 @@ struct VerifyReport {
   double row_sum_min = 0, row_sum_max = 0;
   double error_bound = 0;   // a-posteriori bound from row sums (uniform sphere, furnace); 0 otherwise
   double max_rel_error = 0, mean_rel_error = 0;  // |L_i - exact_i| / exact_i over patches
+  double rms_rel_error = 0;                      // area-weighted root mean square of the same
   int worst_patch = -1;
   double tolerance = 0;     // the pass threshold applied to max_rel_error
   bool passed = false;      // converged and max_rel_error <= tolerance
+  formfactor::Stats ff;     // form-factor statistics (rays, pairs, visibility time)
   std::string table;        // ready-to-print text
 };
+
+// The parts of the cases, for studies that assemble once and solve many times (lambert study).
+mesh::PatchGeometry sphere_geometry(const SphereCase& c);
+void sphere_fields(const SphereCase& c, const mesh::PatchGeometry& g, ColorField& rho, ColorField& Le);
+// Exact answer per patch (channel 0); `basis` (optional) says which (discrete or continuum).
+Eigen::VectorXd sphere_exact(const SphereCase& c, const mesh::PatchGeometry& g, std::string* basis = nullptr);
+mesh::PatchGeometry furnace_geometry(const FurnaceCase& c);
+// max / mean / area-weighted RMS of |L_i - exact_i| / exact_i, worst patch; into r.
+void relative_error(const Eigen::VectorXd& L, const Eigen::VectorXd& exact, const std::vector<double>& area,
+                    VerifyReport& r);
 
 // Throw InputError for out-of-range parameters (names the field and the allowed range).
 VerifyReport verify_sphere(const SphereCase& c);
