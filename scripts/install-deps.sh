@@ -15,6 +15,7 @@ PACKAGES=(
   libfmt-dev           # formatting
   libgtest-dev libgmock-dev libbenchmark-dev  # tests and benchmarks
   paraview xvfb xauth  # the ParaView check (pvbatch under xvfb-run)
+  python3 python3-matplotlib  # the accuracy study's plots (scripts/plot_study.py, run with /usr/bin/python3)
 )
 PV_PYTHON_DIR=${LAMBERT_PARAVIEW_PYTHON_DIR:-/opt/lambert/paraview-python}
 

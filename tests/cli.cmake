@@ -12,3 +12,15 @@ if(Python3_FOUND)
       ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/scripts/make_floorplan.py)
   set_tests_properties(FloorPlanShutRoomStaysDark PROPERTIES LABELS "end-to-end" TIMEOUT 600)
 endif()
+
+# The quick accuracy study (issue: speed against error): the CSV must be well formed, errors must fall as
+# meshes are refined, the adaptive rule must meet its tolerance, and the plots must render. Debian's
+# /usr/bin/python3 has python3-matplotlib (a pyenv python first on PATH may not).
+find_program(LAMBERT_DEBIAN_PYTHON python3 PATHS /usr/bin NO_DEFAULT_PATH)
+if(LAMBERT_DEBIAN_PYTHON)
+  add_test(NAME QuickStudyIsWellFormedAndErrorsFallUnderRefinement
+    COMMAND sh -c "\"$1\" study --quick --quiet --out \"$2\" && \"$3\" \"$4\" \"$2/study.csv\" --check --out \"$2\""
+      sh $<TARGET_FILE:lambert> ${CMAKE_CURRENT_BINARY_DIR}/study-quick ${LAMBERT_DEBIAN_PYTHON}
+      ${PROJECT_SOURCE_DIR}/scripts/plot_study.py)
+  set_tests_properties(QuickStudyIsWellFormedAndErrorsFallUnderRefinement PROPERTIES LABELS "end-to-end" TIMEOUT 300)
+endif()
