@@ -131,7 +131,7 @@ TEST(Adaptive, BeatsUniformRefinementAtEqualPatchCount) {
   solver::AdaptiveOptions o;
   o.max_patches = uni.scene.patches();  // n^2 + 1
   o.tolerance = 0.01;                   // small enough that the budget, not the tolerance, stops it
-  o.max_rounds = 8;
+  o.max_rounds = 16;
   const solver::AdaptiveResult r = solver::solve_adaptive(floor_scene(4), o);
   const Errors ea = floor_errors(r.scene, r.solution.radiance);
 
@@ -153,16 +153,25 @@ TEST(Adaptive, BeatsUniformRefinementAtEqualPatchCount) {
 }
 
 // Nothing above tolerance: one solve, no refinement, and the result is the plain solve.
-TEST(Adaptive, StopsWithoutRefiningWhenJumpsAreBelowTolerance) {
+TEST(Adaptive, StopsWithoutRefiningWhenTheEstimateIsBelowTolerance) {
   solver::AdaptiveOptions o;
   o.max_patches = 1000;
-  o.tolerance = 2.0;  // a relative jump is at most 1 (both radiances lie in [0, max reflected])
-  const auto r = solver::solve_adaptive(floor_scene(4), o);
-  ASSERT_EQ(r.patches_per_round.size(), 1u);
-  EXPECT_EQ(r.patches_per_round[0], 17);
-  EXPECT_EQ(r.stop, "converged");
-  EXPECT_LE(r.max_indicator[0], 1.0);
-  EXPECT_GT(r.max_indicator[0], 0.0);
+  o.tolerance = 1e9;  // far above any estimate
+  const auto first = solver::solve_adaptive(floor_scene(4), o);
+  ASSERT_EQ(first.patches_per_round.size(), 1u);
+  EXPECT_EQ(first.patches_per_round[0], 17);
+  EXPECT_EQ(first.stop, "converged");
+  // Local indicators are ranges of radiance relative to the largest reflected one: in (0, 1] here.
+  EXPECT_LE(first.max_indicator[0], 1.0);
+  EXPECT_GT(first.max_indicator[0], 0.0);
+  // Just above the coarse estimate: still no refinement; just below: refinement.
+  const double E = first.error_estimate[0];
+  ASSERT_GT(E, 0.0);
+  o.tolerance = 1.001 * E;
+  EXPECT_EQ(solver::solve_adaptive(floor_scene(4), o).patches_per_round.size(), 1u);
+  o.tolerance = 0.999 * E;
+  o.max_rounds = 1;
+  EXPECT_EQ(solver::solve_adaptive(floor_scene(4), o).patches_per_round.size(), 2u);
 }
 
 // Budget respected, total area kept, faces keep their input origin, and the final radiance (solved
@@ -274,7 +283,7 @@ mesh::PolygonSoup lit_room_with_block() {
 }
 
 // Reusing the previous round's form factors changes nothing but the work: every pair of two unsplit
-// patches is copied, and the solution is the one recomputing every pair gives.
+// patches is copied, and the final radiance is what a fresh assembly of the final scene gives.
 TEST(Adaptive, ReusedFormFactorsGiveTheSameSolution) {
   for (bool visibility : {false, true}) {
     SCOPED_TRACE(visibility ? "with visibility" : "without visibility");
@@ -283,33 +292,39 @@ TEST(Adaptive, ReusedFormFactorsGiveTheSameSolution) {
     o.tolerance = 0.02;
     o.max_rounds = 3;
     o.ff.visibility = visibility;
-    o.reuse = true;
-    const auto with = solver::solve_adaptive(lit_room_with_block(), o);
-    o.reuse = false;
-    const auto without = solver::solve_adaptive(lit_room_with_block(), o);
-    ASSERT_GE(with.rounds.size(), 3u);
-    EXPECT_EQ(with.rounds[0].pairs_reused, 0);
-    for (size_t r = 1; r < with.rounds.size(); ++r) {
-      // Patches kept from round r-1 = patches of r-1 minus those split there.
-      const long long kept = with.rounds[r - 1].patches - with.rounds[r - 1].split;
-      EXPECT_EQ(with.rounds[r].pairs_reused, kept * (kept - 1) / 2) << "round " << r;
-      EXPECT_EQ(without.rounds[r].pairs_reused, 0) << "round " << r;
-      std::printf("round %zu: %d patches, %lld of %lld pairs reused, assembly %.3f s (without reuse %.3f s)\n", r,
-                  with.rounds[r].patches, with.rounds[r].pairs_reused, with.rounds[r].pairs_total,
-                  with.rounds[r].assemble_seconds, without.rounds[r].assemble_seconds);
+    o.ff.rays_per_pair = 64;  // less ray noise between reused and fresh entries (see the bound below)
+    const auto r = solver::solve_adaptive(lit_room_with_block(), o);
+    ASSERT_EQ(r.rounds.size(), 4u);
+    EXPECT_EQ(r.rounds[0].pairs_reused, 0);
+    for (size_t k = 1; k < r.rounds.size(); ++k) {
+      // Patches kept from round k-1 = patches of k-1 minus those split there.
+      const long long kept = r.rounds[k - 1].patches - r.rounds[k - 1].split;
+      EXPECT_EQ(r.rounds[k].pairs_reused, kept * (kept - 1) / 2) << "round " << k;
+      std::printf("round %zu: %d patches, %lld of %lld pairs reused, form factors %.3f s\n", k, r.rounds[k].patches,
+                  r.rounds[k].pairs_reused, r.rounds[k].pairs_total, r.rounds[k].assemble_seconds);
     }
-    if (with.patches_per_round != without.patches_per_round) {
-      ASSERT_TRUE(visibility) << "without visibility the copied entries equal recomputed ones";
-      continue;  // ray noise moved a patch across the tolerance: different meshes, nothing to compare
+    const auto F = formfactor::assemble(r.scene.geometry, o.ff);
+    const auto fresh = solver::solve(F, r.scene.geometry.area, r.scene.reflectance_field(), r.scene.emission_field());
+    const ColorField diff = (r.solution.radiance - fresh.radiance).cwiseAbs();
+    double mean = 0, norm = 0;  // area-weighted mean |difference| / mean radiance
+    for (int p = 0; p < r.scene.patches(); ++p) {
+      mean += r.scene.geometry.area[p] * diff.row(p).sum();
+      norm += r.scene.geometry.area[p] * fresh.radiance.row(p).sum();
     }
-    const double lmax = without.solution.radiance.maxCoeff();
-    const double diff = (with.solution.radiance - without.solution.radiance).cwiseAbs().maxCoeff();
-    std::printf("largest radiance difference, reuse vs recompute: %.3g of the maximum\n", diff / lmax);
-    // Without visibility both matrices agree to the form-factor tolerance (1e-8 per entry) and both solves
-    // stop at 1e-8 relative residual. With visibility the visible fractions are 16-ray estimates whose
-    // samples are seeded by patch index, which shifts when patches split, so a recomputed pair gets other
-    // samples: a difference at the level of ray noise (0.4% measured), bounded here by 2%.
-    EXPECT_LT(diff, (visibility ? 2e-2 : 1e-6) * lmax);
+    mean /= norm;
+    const double largest = diff.maxCoeff() / fresh.radiance.maxCoeff();
+    std::printf("radiance difference, reuse vs fresh: largest %.3g of the maximum, mean %.3g\n", largest, mean);
+    if (!visibility) {
+      // Both matrices agree to the form-factor tolerance (1e-8 per entry); both solves stop at 1e-8.
+      EXPECT_LT(largest, 1e-6);
+    } else {
+      // Visible fractions are 64-ray estimates whose samples are seeded by patch index, which shifts when
+      // patches split, so a fresh pair gets other samples than the copied one: differences at the level
+      // of ray noise (measured: largest 0.06% of the maximum, mean 0.1%). A wrong pair copied would be off
+      // by the size of a form factor.
+      EXPECT_LT(largest, 1e-2);
+      EXPECT_LT(mean, 1e-2);
+    }
   }
 }
 

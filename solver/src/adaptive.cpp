@@ -213,9 +213,43 @@ std::vector<double> direct_indicator(const mesh::Scene& scene, const ColorField&
   return ind;
 }
 
+std::vector<double> gather_indicator(const mesh::Scene& scene, const formfactor::DenseMatrixOperator& F,
+                                     const ColorField& radiance) {
+  const int n = scene.patches();
+  std::vector<double> ind(n, 0.0);
+  if (n == 0 || F.size() != n) return ind;
+  const auto& g = scene.geometry;
+  const double scale = (radiance - scene.emission_field()).maxCoeff();
+  if (!(scale > 0)) return ind;
+  const auto& M = F.matrix();
+  tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int p = r.begin(); p < r.end(); ++p) {
+      const RGB rho = scene.reflectance(p);
+      if (!(rho.maxCoeff() > 0)) continue;
+      const auto poly = g.polygon(p);
+      double diam = 0;
+      for (size_t a = 0; a < poly.size(); ++a)
+        for (size_t b = a + 1; b < poly.size(); ++b) diam = std::max(diam, (poly[a] - poly[b]).norm());
+      RGB sum = RGB::Zero();
+      for (int j = 0; j < n; ++j) {
+        const double f = M(p, j);
+        if (!(f > 0)) continue;
+        const double d = (g.centroid[j] - g.centroid[p]).norm();
+        const double variation = d > diam ? diam / d : 1.0;
+        sum += f * variation * radiance.row(j).transpose().array();
+      }
+      ind[p] = (rho * sum).maxCoeff() / scale;
+    }
+  });
+  return ind;
+}
+
 AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOptions& options) {
   if (options.max_patches < 1)
     throw InputError("adaptive refinement: max_patches must be >= 1, got " + std::to_string(options.max_patches));
+  if (!(options.mark_fraction > 0 && options.mark_fraction <= 1))
+    throw InputError("adaptive refinement: mark_fraction must be in (0, 1], got " +
+                     std::to_string(options.mark_fraction));
   if (!(options.tolerance > 0) || !std::isfinite(options.tolerance))
     throw InputError("adaptive refinement: tolerance must be finite and > 0, got " +
                      std::to_string(options.tolerance));
@@ -309,6 +343,13 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
     t0 = std::chrono::steady_clock::now();
     std::vector<double> ind = jump_indicator(scene, sol.radiance);
     if (!ind.empty()) info.max_jump = *std::max_element(ind.begin(), ind.end());
+    if (options.gather_indicator) {
+      const std::vector<double> d = gather_indicator(scene, F, sol.radiance);
+      for (int p = 0; p < n; ++p) {
+        info.max_gather = std::max(info.max_gather, d[p]);
+        ind[p] = std::max(ind[p], d[p]);
+      }
+    }
     if (options.direct_indicator) {
       const std::vector<double> d = direct_indicator(scene, sol.radiance);
       for (int p = 0; p < n; ++p) {
@@ -317,17 +358,36 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
       }
     }
     info.indicator_seconds = seconds_since(t0);
-    result.max_indicator.push_back(std::max(info.max_jump, info.max_direct));
+    result.max_indicator.push_back(std::max({info.max_jump, info.max_direct, info.max_gather}));
 
-    std::vector<int> above;
+    // Global estimate: the area-weighted L2 size of the local indicators against that of the reflected
+    // radiance (both relative to its maximum, so the scale cancels).
+    const ColorField R = sol.radiance - scene.emission_field();
+    const double rscale = R.maxCoeff();
+    std::vector<double> weight(n, 0.0);  // A_p eta_p^2: patch p's share of the estimated squared error
+    double total = 0, norm = 0;
+    for (int p = 0; p < n; ++p) {
+      const double a = scene.geometry.area[p];
+      weight[p] = a * ind[p] * ind[p];
+      total += weight[p];
+      if (rscale > 0) norm += a * std::pow(std::max(0.0, R.row(p).maxCoeff()) / rscale, 2);
+    }
+    info.error_estimate = norm > 0 ? std::sqrt(total / norm) : 0.0;
+    result.error_estimate.push_back(info.error_estimate);
+    const bool converged = !(info.error_estimate > options.tolerance);
+
+    // Doerfler marking: the patches with the largest shares until they carry `mark_fraction` of the total.
+    std::vector<int> order;
     for (int p = 0; p < n; ++p)
-      if (ind[p] > options.tolerance) above.push_back(p);
-    std::stable_sort(above.begin(), above.end(), [&](int a, int b) { return ind[a] > ind[b]; });
-
+      if (weight[p] > 0) order.push_back(p);
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return weight[a] > weight[b]; });
     std::vector<char> split(n, 0);
-    int count = n, chosen = 0;
+    int count = n, chosen = 0, marked = 0;
     long not_splittable = 0;
-    for (int p : above) {
+    double covered = 0;
+    for (int p : order) {
+      if (converged || covered >= options.mark_fraction * total) break;
+      ++marked;
       const auto poly = scene.geometry.polygon(p);
       const int m = static_cast<int>(poly.size());
       if (m > 3 && !convex(poly, scene.geometry.normal[p])) {
@@ -337,16 +397,17 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
       if (count + added_by_split(m) > options.max_patches) continue;
       count += added_by_split(m);
       split[p] = 1;
+      covered += weight[p];
       ++chosen;
     }
     result.not_splittable = not_splittable;
-    info.marked = static_cast<int>(above.size());
+    info.marked = marked;
     info.split = chosen;
     result.rounds.push_back(info);
 
-    const bool last = above.empty() || chosen == 0 || round == options.max_rounds;
+    const bool last = converged || chosen == 0 || round == options.max_rounds;
     if (last) {
-      result.stop = above.empty() ? "converged" : chosen == 0 ? "budget" : "max_rounds";
+      result.stop = converged ? "converged" : chosen == 0 ? "budget" : "max_rounds";
       result.soup = std::move(soup);
       result.scene = std::move(scene);
       result.solution = std::move(sol);
