@@ -93,6 +93,7 @@ formfactor::Options ff_options(const CommonOptions& o, Progress* progress) {
   formfactor::Options f;
   f.visibility = !o.no_visibility;
   if (o.ff_tolerance > 0) f.tolerance = o.ff_tolerance;
+  formfactor::parse_rule(o.ff_rule, f.rule, f.order);
   if (o.rays_per_pair > 0) f.rays_per_pair = o.rays_per_pair;
   f.threads = o.threads;
   if (progress) f.progress = [progress](double x) { progress->update(x); };
@@ -101,7 +102,9 @@ formfactor::Options ff_options(const CommonOptions& o, Progress* progress) {
 
 json ff_json(const formfactor::Stats& s, const formfactor::Options& f) {
   json j;
+  j["rule"] = formfactor::to_string(f.rule, f.order);
   j["tolerance"] = f.tolerance;
+  j["pairs_reused"] = s.pairs_reused;
   j["visibility"] = f.visibility;
   j["rays_per_pair"] = f.rays_per_pair;
   j["pairs_total"] = s.pairs_total;

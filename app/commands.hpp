@@ -13,6 +13,7 @@ struct CommonOptions {
   // form factors (0 = module default)
   bool no_visibility = false;
   double ff_tolerance = 0;
+  std::string ff_rule = "adaptive";  // formfactor::parse_rule: adaptive | point | gauss1..gauss8
   int rays_per_pair = 0;
   // solve
   std::string method = "auto";

@@ -62,6 +62,13 @@ int main(int argc, char** argv) {
                     "Absolute error bound on each unoccluded form factor F_ij")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
+    sub->add_option(std::string(tolerance_flag) == "--tolerance" ? "--rule" : "--ff-rule", common.ff_rule,
+                    "Form-factor rule: adaptive (error-controlled by the tolerance), or a fixed rule for comparison: "
+                    "point (centroid to centroid, the textbook one-point rule), gauss1..gauss8 (NxN source points, "
+                    "exact inner integral); see docs/accuracy.md")
+        ->check(CLI::IsMember({"adaptive", "point", "gauss1", "gauss2", "gauss3", "gauss4", "gauss5", "gauss6",
+                               "gauss7", "gauss8"}))
+        ->capture_default_str();
     sub->add_option("--rays", common.rays_per_pair, "Visibility rays per pair that may be partially occluded")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
