@@ -4,9 +4,9 @@
       xvfb-run -a pvbatch scripts/render_examples.py OUT_DIR VTU...
 
 Each VTU gets a camera chosen from its file name (see PRESETS): `cornell*` -> the Cornell box's
-published camera, `room*` and `floorplan*` -> from above at an angle with the ceilings removed, anything
+published camera, `window_room*`, `room*` and `floorplan*` -> from above at an angle with the ceilings removed, anything
 else -> the same kind of view over its bounding box. The picture is written to OUT_DIR/<preset>.png
-(cornell_box.png, room.png, floorplan.png, or the VTU's base name).
+(cornell_box.png, window_room.png, room.png, floorplan.png, or the VTU's base name).
 
 Colour: for a colour scene every vertex shows its RGB radiance (point data 'radiance') as a colour,
 L / L_white clipped to [0, 1] and raised to 1/2.2 for display, with L_white the 99th percentile of the
@@ -47,6 +47,8 @@ PRESETS = [
      [("living", (4.4, 0.3, 1.0), (1, 1, 1)), ("kitchen", (6.4, 0.3, 1.9), (1, 1, 1)),
       ("bedroom", (4.3, 0.3, 8.3), (1, 1, 1)), ("study", (6.5, 0.3, 6.6), (1, 1, 1)),
       ("storage (shut)", (6.5, 2.6, 4.7), (0.85, 0.85, 0.85))]),
+    # Before "room", which its name also matches.
+    ("window_room", "window_room", (1024, 768), ("orbit", 55.0, 35.0), True, 1.0, []),
     ("room", "room", (1024, 768), None, True, 1.0, []),
 ]
 

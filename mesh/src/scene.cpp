@@ -302,7 +302,8 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
       report.warn("duplicate_vertices", dups,
                   std::to_string(dups) + " vertices duplicate the coordinates of another vertex (e.g. " +
                       vertex_at(soup, ex_a) + " and " + vertex_at(soup, ex_b) + " at " +
-                      vec(soup.positions[ex_a]) + "); not merged, so faces meeting there are not connected");
+                      vec(soup.positions[ex_a]) + "); kept apart: harmless where separate objects only touch, but " +
+                      "faces meant to be connected there are not (mesh preparation welds them unless --no-repair)");
   }
 
   // 5. Orientation: an edge traversed in the same direction by two faces.

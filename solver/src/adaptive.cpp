@@ -90,8 +90,23 @@ mesh::PolygonSoup soup_from_scene(const mesh::PolygonSoup& in, const mesh::Scene
   return s;
 }
 
-// Children added by splitting a face with m corners (see split_face).
-int added_by_split(int m) { return m == 3 ? 3 : m - 1; }
+// A convex quad much longer than wide (opposite edges both > 2x the other two) is halved across its
+// length instead of split 4 ways, which would keep its aspect ratio: 1 = cut edges 0 and 2 at their
+// midpoints, 2 = edges 1 and 3, 0 = no such quad.
+int long_quad(std::span<const Vec3> q) {
+  if (q.size() != 4) return 0;
+  double l[4];
+  for (int i = 0; i < 4; ++i) l[i] = (q[(i + 1) % 4] - q[i]).norm();
+  if (std::min(l[0], l[2]) > 2 * std::max(l[1], l[3])) return 1;
+  if (std::min(l[1], l[3]) > 2 * std::max(l[0], l[2])) return 2;
+  return 0;
+}
+
+// Children added by splitting a face (see the split in solve_adaptive).
+int added_by_split(std::span<const Vec3> poly) {
+  const int m = static_cast<int>(poly.size());
+  return long_quad(poly) ? 1 : m == 3 ? 3 : m - 1;
+}
 
 // 3 points per triangle of patch p, at barycentric (2/3, 1/6, 1/6) and its permutations: strictly
 // inside the patch even when it is not convex, and spread towards its corners.
@@ -394,8 +409,8 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
         ++not_splittable;
         continue;
       }
-      if (count + added_by_split(m) > options.max_patches) continue;
-      count += added_by_split(m);
+      if (count + added_by_split(poly) > options.max_patches) continue;
+      count += added_by_split(poly);
       split[p] = 1;
       covered += weight[p];
       ++chosen;
@@ -432,10 +447,17 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
       }
       const std::vector<int>& v = f.vertices;
       const int m = static_cast<int>(v.size());
-      std::vector<int> e(m);  // e[i]: midpoint of edge (i, i+1)
-      for (int i = 0; i < m; ++i) e[i] = mid(v[i], v[(i + 1) % m]);
+      std::vector<int> e(m, -1);  // e[i]: midpoint of edge (i, i+1), where used
+      const int cut = long_quad(scene.geometry.polygon(p));
+      for (int i = 0; i < m; ++i)
+        if (cut == 0 || (cut == 1) == (i % 2 == 0)) e[i] = mid(v[i], v[(i + 1) % m]);
       std::vector<std::vector<int>> children;
-      if (m == 3) {
+      const int halve = long_quad(scene.geometry.polygon(p));
+      if (halve == 1) {
+        children = {{v[0], e[0], e[2], v[3]}, {e[0], v[1], v[2], e[2]}};
+      } else if (halve == 2) {
+        children = {{v[0], v[1], e[1], e[3]}, {e[3], e[1], v[2], v[3]}};
+      } else if (m == 3) {
         children = {{v[0], e[0], e[2]}, {e[0], v[1], e[1]}, {e[2], e[1], v[2]}, {e[0], e[1], e[2]}};
       } else {
         Vec3 c = Vec3::Zero();

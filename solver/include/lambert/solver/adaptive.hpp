@@ -26,8 +26,10 @@
 // sum, are split. Weighting by area makes large smooth patches win over tiny ones at a discontinuity
 // (whose jump never shrinks), so refinement follows the L2 error, not the largest jump.
 // Marked patches are split, largest share first, while the patch count stays within
-// `max_patches`: a triangle into 4 by its edge midpoints, a convex polygon with m >= 4 corners into m
-// quads (corner, edge midpoints, centroid); non-convex n-gons are not split. Split faces keep
+// `max_patches`: a triangle into 4 by its edge midpoints, a convex quad whose two opposite edges are
+// both more than twice as long as the other two into 2 across its length (so long strips, common in
+// architectural models, become squarer), another convex polygon with m >= 4 corners into m quads
+// (corner, edge midpoints, centroid); non-convex n-gons are not split. Split faces keep
 // material, group, line and origin; neighbours keep their corner lists, so hanging nodes
 // (T-junctions) appear, which piecewise-constant radiosity does not mind. New corners are welded by
 // exact position (midpoints are computed symmetrically), so neighbours share vertices: no duplicate
