@@ -275,3 +275,31 @@ TEST_F(Cli, AdaptiveRefinementStaysWithinBudgetAndKeepsFaceId) {
   for (vtkIdType c = 0; c < grid->GetNumberOfCells(); ++c)
     ASSERT_LT(id->GetTuple1(c), 16) << "cell " << c << ": the Cornell box has 16 input faces";
 }
+
+// --rule picks a fixed rule: the point rule on two unit squares 1 m apart is cos cos A / (pi r^2) = 1/pi
+// between centroids (the textbook value, 59% above the catalogue's 0.1998), gauss2 lands in between.
+TEST_F(Cli, FormFactorRuleFlagSelectsFixedRules) {
+  write("two.mtl", kTwoMtl);
+  const std::string obj = write("two.obj", kTwoSquares);
+  auto first_F = [&](const std::string& rule) {
+    const std::string out = path("F_" + rule + ".csv"), stats = path("s_" + rule + ".json");
+    const CliRun r = run("formfactors " + obj + " -o " + out + " --rule " + rule + " --stats " + stats + " --quiet");
+    EXPECT_EQ(r.status, 0) << r.output;
+    std::ifstream in(out);
+    int i = -1, j = -1;
+    double f = -1;
+    char c1, c2;
+    in >> i >> c1 >> j >> c2 >> f;
+    std::ifstream js(stats);
+    const std::string text((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+    EXPECT_NE(text.find("\"rule\": \"" + rule + "\""), std::string::npos) << text;
+    return f;
+  };
+  EXPECT_NEAR(first_F("point"), 1 / M_PI, 1e-10);
+  const double g2 = first_F("gauss2");
+  EXPECT_LT(std::abs(g2 - 0.1998248957), std::abs(1 / M_PI - 0.1998248957));
+  EXPECT_NEAR(first_F("adaptive"), 0.1998248957, 1e-9);
+  const CliRun bad = run("formfactors " + obj + " -o " + path("bad.csv") + " --rule gauss9");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.output.find("--rule"), std::string::npos) << bad.output;
+}
