@@ -306,7 +306,7 @@ int finish_solve(const CommonOptions& o, const mesh::Scene& scene, const solver:
   return 0;
 }
 
-// --adaptive-budget: solve coarse, split patches whose radiance jumps to a neighbour, re-solve.
+// --adaptive-budget: solve coarse, split where the estimated error is (solver/adaptive.hpp), re-solve.
 int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseTimer& timer) {
   mesh::PolygonSoup soup = read_input(o, timer);
   timer.start("prepare");
@@ -326,13 +326,28 @@ int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseT
   r.scene.report.warnings.insert(r.scene.report.warnings.begin(), prep_report.warnings.begin(), prep_report.warnings.end());
   for (const auto& w : r.scene.report.warnings) say(o, "lambert: warning: " + w);
   json extra;
+  json per_round = json::array();
+  for (const auto& rd : r.rounds)
+    per_round.push_back({{"patches", rd.patches}, {"pairs_total", rd.pairs_total}, {"pairs_reused", rd.pairs_reused},
+                         {"error_estimate", rd.error_estimate}, {"marked", rd.marked}, {"split", rd.split},
+                         {"seconds", {{"form_factors", rd.assemble_seconds}, {"solve", rd.solve_seconds},
+                                      {"indicators", rd.indicator_seconds}}}});
   extra["adaptive"] = {{"patches_per_round", r.patches_per_round}, {"max_indicator", r.max_indicator},
+                       {"error_estimate", r.error_estimate}, {"rounds", per_round},
                        {"stop", r.stop}, {"not_splittable", r.not_splittable}, {"budget", ao.max_patches},
                        {"tolerance", ao.tolerance}};
   std::string rounds;
   for (int p : r.patches_per_round) rounds += (rounds.empty() ? "" : " -> ") + std::to_string(p);
-  const std::string detail = fmt::format("  adaptive     patches per round {} (stop: {}, largest jump {:.3g})\n", rounds,
-                                         r.stop, r.max_indicator.empty() ? 0.0 : r.max_indicator.back());
+  long long reused = 0, pairs = 0;
+  for (const auto& rd : r.rounds) {
+    reused += rd.pairs_reused;
+    pairs += rd.pairs_total;
+  }
+  const std::string detail = fmt::format(
+      "  adaptive     patches per round {} (stop: {}), estimated error E {:.3g} (tolerance {:.3g}), "
+      "form-factor pairs reused {:.0f}%\n",
+      rounds, r.stop, r.error_estimate.empty() ? 0.0 : r.error_estimate.back(), ao.tolerance,
+      pairs ? 100.0 * double(reused) / double(pairs) : 0.0);
   return finish_solve(o, r.scene, r.solution, so, timer, extra, detail);
 }
 

@@ -22,8 +22,8 @@ struct CommonOptions {
   double crease_deg = 30.0;
   // adaptive refinement (0 = off)
   int adaptive_budget = 0;
-  double adaptive_tolerance = 0.05;
-  int adaptive_rounds = 4;
+  double adaptive_tolerance = 0.01;  // E (estimated relative L2 error); 0.01 lets the budget decide
+  int adaptive_rounds = 12;          // each round splits ~half the error: 12 rounds reach budgets of ~10^4
 };
 
 struct VerifyOptions {

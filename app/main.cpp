@@ -91,12 +91,14 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 180.0))
       ->capture_default_str();
   solve->add_option("--adaptive-budget", common.adaptive_budget,
-                    "Adaptive refinement: solve, split patches whose radiance jumps to a neighbour by more than "
-                    "--adaptive-tol (relative to the largest reflected radiance), re-solve, up to this many patches; "
+                    "Adaptive refinement up to this many patches: solve, estimate per patch the radiance variation "
+                    "it does not resolve (jumps to neighbours, direct light and shadow edges across it, B.F "
+                    "gather), split the patches carrying half of the estimated error, re-solve (docs/adaptive.md); "
                     "0 = off")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  solve->add_option("--adaptive-tol", common.adaptive_tolerance, "Relative radiance jump that marks a patch for splitting")
+  solve->add_option("--adaptive-tol", common.adaptive_tolerance,
+                    "Stop refining when the estimated relative L2 error of the radiance is at most this")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   solve->add_option("--adaptive-rounds", common.adaptive_rounds, "Refinement rounds at most (solves = rounds + 1)")

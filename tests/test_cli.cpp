@@ -101,7 +101,7 @@ TEST_F(Cli, UnknownOptionFails) {
 
 // Every bundled example solves, writes a .vtu with radiance, and a stats file with the promised keys.
 TEST_F(Cli, EveryExampleSolvesEndToEnd) {
-  for (const char* name : {"cornell_box", "room"}) {
+  for (const char* name : {"cornell_box", "room", "window_room"}) {
     SCOPED_TRACE(name);
     const std::string out = path(std::string(name) + ".vtu"), stats = path(std::string(name) + ".json");
     const CliRun r = run("solve " + kExamples + name + ".obj -o " + out + " --stats " + stats);
