@@ -368,6 +368,14 @@ void Study::catalogue() {
 }
 
 void Study::run() {
+  // Fail before minutes of work if the output directory cannot be made or written.
+  std::error_code ec;
+  std::filesystem::create_directories(o_.out, ec);
+  if (ec || !std::filesystem::is_directory(o_.out))
+    throw InputError("study: cannot create the output directory '" + o_.out + "'" + (ec ? ": " + ec.message() : ""));
+  const std::string path = (std::filesystem::path(o_.out) / "study.csv").string();
+  io::write_file_atomically(path + ".probe", [](std::ostream&) {});
+  std::filesystem::remove(path + ".probe", ec);
   if (!o_.quiet)
     std::fprintf(stderr, "lambert study (%s): writing %s/study.csv\n", o_.quick ? "quick" : "full", o_.out.c_str());
   catalogue();
@@ -376,8 +384,6 @@ void Study::run() {
   solver_methods();
   furnace();
   scale();
-  std::filesystem::create_directories(o_.out);
-  const std::string path = (std::filesystem::path(o_.out) / "study.csv").string();
   io::write_file_atomically(path, [&](std::ostream& out) {
     out << kHeader << '\n';
     for (const auto& l : lines_) out << l << '\n';

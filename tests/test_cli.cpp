@@ -303,3 +303,12 @@ TEST_F(Cli, FormFactorRuleFlagSelectsFixedRules) {
   EXPECT_NE(bad.status, 0);
   EXPECT_NE(bad.output.find("--rule"), std::string::npos) << bad.output;
 }
+
+// The study checks its output directory before running (minutes of work must not end in a write error).
+TEST_F(Cli, StudyFailsEarlyOnAnUnwritableOutputDirectory) {
+  write("file", "x");
+  const CliRun r = run("study --quick --out " + path("file") + "/sub");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("output directory"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("study    1"), std::string::npos) << "no run may start: " << r.output;
+}

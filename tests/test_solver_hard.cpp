@@ -181,3 +181,41 @@ TEST(SolverHardCase, ReflectanceNearOneInOccludedRoom) {
 
 }  // namespace
 }  // namespace lambert::solver
+
+#include "lambert/solver/verify.hpp"
+
+namespace lambert::solver {
+namespace {
+
+// A 1 km furnace room with a 1 mm cube floating in it (the study's `scale` case) must solve like the 1 m
+// room: every quantity is scale-free, the speck's patches are added after the room's (so the ray seeds of
+// the room's pairs are unchanged), and it blocks almost nothing. Tolerance: 2% of the 1 m error (the
+// speck's own rays and rounding), and the speck's patches themselves within the room's error bound.
+TEST(SolverHardCase, FurnaceSpanningMillimetreToKilometreSolvesLikeTheMetreRoom) {
+  FurnaceCase unit;
+  unit.divisions = 4;
+  unit.block_divisions = 2;
+  unit.rho = 0.9;
+  unit.rays_per_pair = 16;
+  FurnaceCase huge = unit;
+  huge.size = 1e3;
+  huge.speck = 1e-3;
+  const VerifyReport a = verify_furnace(unit), b = verify_furnace(huge);
+  ASSERT_TRUE(a.converged && b.converged);
+  EXPECT_EQ(b.patches, a.patches + 6);
+  EXPECT_NEAR(b.max_rel_error, a.max_rel_error, 0.02 * a.max_rel_error) << a.table << b.table;
+  EXPECT_NEAR(b.row_sum_max, a.row_sum_max, 1e-3) << "speck rows must sum to 1 like the room's";
+  EXPECT_LE(b.max_rel_error, std::max(b.error_bound, a.max_rel_error) * 1.05) << b.table;
+}
+
+TEST(SolverHardCase, FurnaceScaleParametersAreValidated) {
+  FurnaceCase c;
+  c.size = 0;
+  EXPECT_THROW(verify_furnace(c), InputError);
+  c.size = 1;
+  c.speck = 0.5;  // larger than 0.1 size: would not fit between the block and the walls
+  EXPECT_THROW(verify_furnace(c), InputError);
+}
+
+}  // namespace
+}  // namespace lambert::solver
