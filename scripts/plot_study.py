@@ -158,6 +158,22 @@ def curve_label(key, value):
     return f"{value:g} rays" if key == "rays" else str(value)
 
 
+def finish_axes(ax, title, xlabel, ylabel="max relative error"):
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+
+
+def save(plt, fig, out, name, title=None):
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, name), dpi=90)
+    plt.close(fig)
+
+
 def plot(rows, out):
     import matplotlib
     matplotlib.use("Agg")
@@ -186,15 +202,8 @@ def plot(rows, out):
             ax.step([p[0] for p in front], [p[1] for p in front], where="post", color="k", lw=1, alpha=0.6)
             ax.plot([p[0] for p in front], [p[1] for p in front], "s", mfc="none", mec="k", ms=9,
                     label="Pareto front")
-        ax.set_title(title, fontsize=10)
-        ax.set_xlabel("total time (form factors + solve) [s]")
-        ax.set_ylabel("max relative error")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle("lambert: error against cost (each curve: one setting over mesh levels)")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "error_vs_time.png"), dpi=90)
-    plt.close(fig)
+        finish_axes(ax, title, "total time (form factors + solve) [s]")
+    save(plt, fig, out, "error_vs_time.png", "lambert: error against cost (each curve: one setting over mesh levels)")
 
     # 2. error against patch count with fitted orders.
     fig, axes = plt.subplots(1, 3, figsize=(16, 5))
@@ -208,15 +217,9 @@ def plot(rows, out):
             g = sorted(groups[rule], key=lambda r: r["patches"])
             ax.loglog([r["patches"] for r in g], [max(r["max_rel_error"], floor) for r in g], "o-", ms=4,
                       label=f"{rule} ({order_text(g)})")
-        ax.set_title(title, fontsize=10)
-        ax.set_xlabel("patches")
-        ax.set_ylabel("max relative error")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle("error against patch count; order p in h from error ~ N^(-p/2), last three levels")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "error_vs_patches.png"), dpi=90)
-    plt.close(fig)
+        finish_axes(ax, title, "patches")
+    save(plt, fig, out, "error_vs_patches.png",
+         "error against patch count; order p in h from error ~ N^(-p/2), last three levels")
 
     # 3. iterations against rho per method (solver tolerance 1e-8).
     sel = [r for r in select(rows, case="solver") if r["solve_tolerance"] == "1e-08"]
@@ -226,14 +229,9 @@ def plot(rows, out):
         if g:
             ax.semilogy([1 / (1 - r["rho"]) for r in g], [products(r) for r in g], "o-", label=method)
     ax.set_xscale("log")
-    ax.set_xlabel("1 / (1 - rho)")
-    ax.set_ylabel("products F x or sweeps (to relative residual 1e-8)")
-    ax.set_title("solver cost against reflectance (room lit by its ceiling)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "iterations_vs_rho.png"), dpi=90)
-    plt.close(fig)
+    finish_axes(ax, "solver cost against reflectance (room lit by its ceiling)", "1 / (1 - rho)",
+                "products F x or sweeps (to relative residual 1e-8)")
+    save(plt, fig, out, "iterations_vs_rho.png")
 
 
 def products(r):

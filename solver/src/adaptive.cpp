@@ -448,11 +448,10 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
       const std::vector<int>& v = f.vertices;
       const int m = static_cast<int>(v.size());
       std::vector<int> e(m, -1);  // e[i]: midpoint of edge (i, i+1), where used
-      const int cut = long_quad(scene.geometry.polygon(p));
-      for (int i = 0; i < m; ++i)
-        if (cut == 0 || (cut == 1) == (i % 2 == 0)) e[i] = mid(v[i], v[(i + 1) % m]);
-      std::vector<std::vector<int>> children;
       const int halve = long_quad(scene.geometry.polygon(p));
+      for (int i = 0; i < m; ++i)
+        if (halve == 0 || (halve == 1) == (i % 2 == 0)) e[i] = mid(v[i], v[(i + 1) % m]);
+      std::vector<std::vector<int>> children;
       if (halve == 1) {
         children = {{v[0], e[0], e[2], v[3]}, {e[0], v[1], v[2], e[2]}};
       } else if (halve == 2) {
