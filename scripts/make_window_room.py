@@ -18,6 +18,8 @@ Usage: scripts/make_window_room.py [--out DIR]
 import argparse
 import os
 
+from make_examples import newell  # scripts/ is on sys.path when run as a script
+
 X, Y, Z = 5.0, 3.0, 4.0  # room size (x, height y, depth z)
 WZ = (1.2, 2.8)          # window extent along z in the wall x = 0
 WY = (0.9, 2.3)          # window sill and head height
@@ -53,14 +55,6 @@ def sub(a, b):
     return tuple(x - y for x, y in zip(a, b))
 
 
-def newell(poly):
-    n = [0.0, 0.0, 0.0]
-    for i, p in enumerate(poly):
-        q = poly[(i + 1) % len(poly)]
-        n[0] += (p[1] - q[1]) * (p[2] + q[2])
-        n[1] += (p[2] - q[2]) * (p[0] + q[0])
-        n[2] += (p[0] - q[0]) * (p[1] + q[1])
-    return tuple(n)
 
 
 def oriented(poly, direction):

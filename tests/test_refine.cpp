@@ -10,25 +10,17 @@
 
 #include "lambert/io/readers.hpp"
 #include "lambert/mesh/prepare.hpp"
+#include "soup_util.hpp"
 
 using namespace lambert;
 using namespace lambert::mesh;
 
 namespace {
 
+// test_util::soup_of with face k in group k % 2 (refinement must keep groups).
 PolygonSoup soup_of(const std::vector<Vec3>& positions, const std::vector<std::vector<int>>& faces) {
-  PolygonSoup s = make_empty_soup("test.obj");
-  for (size_t i = 0; i < positions.size(); ++i) {
-    s.positions.push_back(positions[i]);
-    s.position_lines.push_back(static_cast<int>(i) + 1);
-  }
-  for (size_t k = 0; k < faces.size(); ++k) {
-    SoupFace f;
-    f.vertices = faces[k];
-    f.line = 100 + static_cast<int>(k);
-    f.group = static_cast<int>(k % 2);
-    s.faces.push_back(f);
-  }
+  PolygonSoup s = test_util::soup_of(positions, faces);
+  for (size_t k = 0; k < s.faces.size(); ++k) s.faces[k].group = static_cast<int>(k % 2);
   s.groups = {"even", "odd"};
   return s;
 }

@@ -29,31 +29,33 @@ double perpendicular_corner(double u, double s2) {
   return -h / (4 * kPi);
 }
 
-double parallel_rectangles(double x1, double x2, double y1, double y2, double u1, double u2, double v1, double v2,
-                           double c) {
-  const double xs[2] = {x1, x2}, us[2] = {u1, u2}, ys[2] = {y1, y2}, vs[2] = {v1, v2};
+namespace {
+
+// Superposition over the 16 corner combinations: sum of (-1)^(i+k+j+l) f(a_i - b_k, c_j, d_l).
+template <class Corner>
+double corner_sum(const double (&a)[2], const double (&b)[2], const double (&c)[2], const double (&d)[2], Corner f) {
   double sum = 0;
   for (int i = 0; i < 2; ++i)
     for (int k = 0; k < 2; ++k)
       for (int j = 0; j < 2; ++j)
-        for (int l = 0; l < 2; ++l) {
-          const double sign = ((i + k + j + l) % 2 == 0) ? 1 : -1;
-          sum += sign * parallel_corner(xs[i] - us[k], ys[j] - vs[l], c);
-        }
+        for (int l = 0; l < 2; ++l) sum += ((i + k + j + l) % 2 == 0 ? 1 : -1) * f(a[i] - b[k], c[j], d[l]);
+  return sum;
+}
+
+}  // namespace
+
+double parallel_rectangles(double x1, double x2, double y1, double y2, double u1, double u2, double v1, double v2,
+                           double c) {
+  const double xs[2] = {x1, x2}, us[2] = {u1, u2}, ys[2] = {y1, y2}, vs[2] = {v1, v2};
+  const double sum = corner_sum(xs, us, ys, vs, [c](double dx, double y, double v) { return parallel_corner(dx, y - v, c); });
   return sum / ((x2 - x1) * (y2 - y1));
 }
 
 double perpendicular_rectangles(double x1, double x2, double z1, double z2, double u1, double u2, double y1,
                                 double y2) {
   const double xs[2] = {x1, x2}, us[2] = {u1, u2}, ys[2] = {y1, y2}, zs[2] = {z1, z2};
-  double sum = 0;
-  for (int i = 0; i < 2; ++i)
-    for (int k = 0; k < 2; ++k)
-      for (int j = 0; j < 2; ++j)
-        for (int l = 0; l < 2; ++l) {
-          const double sign = ((i + k + j + l) % 2 == 0) ? 1 : -1;
-          sum += sign * perpendicular_corner(xs[i] - us[k], ys[j] * ys[j] + zs[l] * zs[l]);
-        }
+  const double sum =
+      corner_sum(xs, us, ys, zs, [](double dx, double y, double z) { return perpendicular_corner(dx, y * y + z * z); });
   return -sum / ((x2 - x1) * (z2 - z1));
 }
 
