@@ -35,6 +35,7 @@ Shaft make_shaft(const Box& a, const Box& b) {
           n[u] = nu;
           n[v] = nv;
           s.n[s.planes] = n;
+          s.n_abs[s.planes] = n.cwiseAbs();
           s.d[s.planes] = nu * pu + nv * pv;
           ++s.planes;
         }
@@ -47,7 +48,7 @@ bool box_outside(const Shaft& s, const Box& c) {
     if (c.hi[k] < s.box.lo[k] || c.lo[k] > s.box.hi[k]) return true;
   const Vec3 ctr = 0.5 * (c.lo + c.hi), half = 0.5 * (c.hi - c.lo);
   for (int p = 0; p < s.planes; ++p)
-    if (s.n[p].dot(ctr) - s.n[p].cwiseAbs().dot(half) > s.d[p]) return true;
+    if (s.n[p].dot(ctr) - s.n_abs[p].dot(half) > s.d[p]) return true;
   // Entirely in the closed back half-space of either patch: the open segments run strictly in front.
   if (s.ni.dot(ctr) + s.ni.cwiseAbs().dot(half) - s.oi <= s.eps) return true;
   if (s.nj.dot(ctr) + s.nj.cwiseAbs().dot(half) - s.oj <= s.eps) return true;

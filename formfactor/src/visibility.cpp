@@ -91,6 +91,7 @@ class EmbreeVisibility final : public Visibility {
     IgnoreContext c;
     rtcInitIntersectContext(&c.ctx);
     c.ctx.filter = &ignore_filter;
+    c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one call = rays between two patches
     c.tri_patch = tri_patch_.data();
     c.a = ignore_a;
     c.b = ignore_b;
