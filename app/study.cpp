@@ -83,7 +83,7 @@ std::string csv_line(const Row& r, int threads) {
 
 class Study {
  public:
-  Study(const StudyOptions& o) : o_(o) {}
+  explicit Study(const StudyOptions& o) : o_(o) {}
   void run();
 
  private:
@@ -125,8 +125,8 @@ Study::Assembly Study::assemble(const mesh::PatchGeometry& g, const Knob& k, int
 void Study::emit(Row r) {
   lines_.push_back(csv_line(r, tbb::this_task_arena::max_concurrency()));
   if (!o_.quiet)
-    std::fprintf(stderr, "  study %4zu  %-26s %-12s %6d patches  %-13s rays %-3d %-12s rho %-5g  err %.2e  %.3f s\n",
-                 lines_.size(), (r.case_name + " " + r.variant).c_str(), "", r.patches, r.knob.label().c_str(), r.rays,
+    std::fprintf(stderr, "  study %4zu  %-28s %6d patches  %-14s rays %-3d %-12s rho %-5g  err %.2e  %.3f s\n",
+                 lines_.size(), (r.case_name + " " + r.variant).c_str(), r.patches, r.knob.label().c_str(), r.rays,
                  r.method.c_str(), r.rho, r.max_err, r.t_ff + r.t_solve);
 }
 

@@ -90,8 +90,8 @@ std::string table(const VerifyReport& r, const std::string& exact_line, const st
                    s.emitted[0], s.absorbed[0], s.escaped[0], s.energy_residual);
   t += fmt::format("  time         mesh {:.3f} s, form factors {:.3f} s, solve {:.3f} s, total {:.3f} s\n",
                    r.seconds.at("mesh"), r.seconds.at("form_factors"), r.seconds.at("solve"), r.seconds.at("total"));
-  t += fmt::format("  rel. error   max {:.2e} (patch {}), mean {:.2e}\n", r.max_rel_error, r.worst_patch,
-                   r.mean_rel_error);
+  t += fmt::format("  rel. error   max {:.2e} (patch {}), mean {:.2e}, area-weighted RMS {:.2e}\n", r.max_rel_error,
+                   r.worst_patch, r.mean_rel_error, r.rms_rel_error);
   t += fmt::format("  tolerance    {:.2e} ({}): {}\n", r.tolerance, basis,
                    r.passed ? "PASS" : (r.converged ? "FAIL (error above tolerance)" : "FAIL (solve did not converge)"));
   return t;
