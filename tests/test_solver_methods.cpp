@@ -466,3 +466,32 @@ TEST(SolverHardCase, AreasSpanningNineDecades) {
 
 }  // namespace
 }  // namespace lambert::solver
+
+namespace lambert::solver {
+namespace {
+
+// Radiance below zero is never clamped. From form factors far above 1 (F_12 = F_21 = 3, invalid on purpose)
+// the exact solution of L = Le + rho F L is negative: L1 = -0.8, L2 = -1.2 for Le = (1, 0), rho = 0.5. The
+// warning must call that inaccurate, give the most negative value, and the values must stay as solved.
+TEST(SolverReport, NegativeRadianceIsReportedNotClamped) {
+  formfactor::DenseMatrixOperator::Matrix M(2, 2);
+  M << 0, 3, 3, 0;
+  auto F = std::make_shared<formfactor::DenseMatrixOperator>(M);
+  const Solver S(F, {1.0, 1.0});
+  ColorField rho = ColorField::Constant(2, 3, 0.5), Le = ColorField::Zero(2, 3);
+  Le.row(0).setConstant(1.0);
+  Options o;
+  o.method = Method::GMRES;
+  const Solution s = S.solve(rho, Le, o);
+  ASSERT_TRUE(s.converged);
+  EXPECT_NEAR(s.radiance(0, 0), -0.8, 1e-7);
+  EXPECT_NEAR(s.radiance(1, 0), -1.2, 1e-7);
+  bool found = false;
+  for (const auto& w : s.warnings)
+    found |= w.find("negative radiance") != std::string::npos && w.find("inaccurate") != std::string::npos &&
+             w.find("-1.2") != std::string::npos;
+  EXPECT_TRUE(found) << (s.warnings.empty() ? std::string("no warnings") : s.warnings.front());
+}
+
+}  // namespace
+}  // namespace lambert::solver

@@ -155,6 +155,7 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
   const double pi = std::numbers::pi;
   sol.converged = true;
   long negative = 0;
+  double most_negative = 0, largest = 0;
   for (int c = 0; c < channels; ++c) {
     int same = -1;
     for (int e = 0; e < c && same < 0; ++e)
@@ -188,6 +189,8 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
     }
     sol.converged = sol.converged && report.stop == "converged";
     negative += (L.array() < 0).count();
+    most_negative = std::min(most_negative, L.minCoeff());
+    largest = std::max(largest, L.maxCoeff());
     sol.radiance.col(c) = L;
     sol.irradiance.col(c) = pi * FL;
     sol.channels.push_back(std::move(report));
@@ -196,9 +199,19 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
     sol.radiance.col(1) = sol.radiance.col(2) = sol.radiance.col(0);
     sol.irradiance.col(1) = sol.irradiance.col(2) = sol.irradiance.col(0);
   }
-  if (negative > 0)
-    sol.warnings.push_back(std::to_string(negative) +
-                           " negative radiance values: the form factors or the solve are inaccurate");
+  // Radiance is never negative in exact arithmetic. Values below zero by less than the solve's tolerance
+  // times the largest radiance are what stopping at that tolerance leaves; larger ones mean inaccurate form
+  // factors or a solve that went wrong. Both are reported, left as computed (no clamping).
+  if (negative > 0) {
+    std::ostringstream msg;
+    msg << negative << " negative radiance values, the most negative " << most_negative;
+    if (-most_negative <= options.tolerance * largest)
+      msg << ": within the solve's tolerance (" << options.tolerance << ") of the largest radiance " << largest
+          << ", i.e. iterative round-off where (almost) no light arrives; left as computed";
+    else
+      msg << " (largest radiance " << largest << "): the form factors or the solve are inaccurate";
+    sol.warnings.push_back(msg.str());
+  }
 
   // Energy balance per channel (W).
   for (int i = 0; i < n; ++i) {
