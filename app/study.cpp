@@ -202,7 +202,7 @@ void Study::sphere_form_factors() {
     const mesh::PatchGeometry g = solver::sphere_geometry(c);
     for (const Knob& k : knobs) {
       const Assembly a = assemble(g, k, 16);
-      for (double rho : {0.9, 0.99}) {
+      for (double rho : {0.9, 0.99, 0.999}) {
         c.rho = rho;
         ColorField R, Le;
         solver::sphere_fields(c, g, R, Le);

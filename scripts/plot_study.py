@@ -288,7 +288,7 @@ def tables(rows):
     hard = [r for r in rows if r["case"] in ("near_touching", "sliver") and r["level"] == max(
         x["level"] for x in select(rows, case=r["case"], variant=r["variant"]))]
     hard += [r for r in rows if r["case"] == "scale"]
-    hard += [r for r in select(rows, case="sphere_uniform") if r["rho"] == 0.99 and
+    hard += [r for r in select(rows, case="sphere_uniform") if r["rho"] >= 0.99 and
              r["level"] == max(x["level"] for x in select(rows, case="sphere_uniform"))]
     hard += [r for r in select(rows, case="furnace", rho=0.99) if r["rule"] == "adaptive 1e-08" and
              r["level"] == max(x["level"] for x in select(rows, case="furnace"))]
