@@ -182,6 +182,7 @@ struct TileBuffers {
   std::vector<Vec3> xs, ys, from, to;
   std::vector<std::uint8_t> hidden;
   std::vector<double> fx;
+  int blocker = -1;  // the occluder that blocked the last shaft tested (OccluderTree::may_block's cache)
 };
 
 class Assembler {
@@ -482,7 +483,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
               sh.nj = pr.P.nrm[j];
               sh.oj = pr.P.offset[j];
               sh.eps = pr.P.scene_eps;
-              if (!o_.cull_occlusion || tree_.may_block(sh, i, j)) {
+              if (!o_.cull_occlusion || tree_.may_block(sh, i, j, &b.blocker)) {
                 ++c.ray_tested;
                 const bool swap = area[j] < area[i];
                 // A pair that carries a large share of a row dominates that row's visibility error: give it

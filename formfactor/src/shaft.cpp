@@ -96,8 +96,30 @@ int OccluderTree::build(int begin, int end) {
   return id;
 }
 
-bool OccluderTree::may_block(const Shaft& s, int ia, int ib) const {
+bool OccluderTree::item_may_block(const Shaft& s, int p) const {
+  if (box_outside(s, boxes_[p])) return false;
+  // Tighter: the occluder's own corners against the shaft planes and the two patch planes.
+  const auto poly = g_->polygon(p);
+  for (int q = 0; q < s.planes; ++q) {
+    bool out = true;
+    for (const Vec3& v : poly)
+      if (s.n[q].dot(v) <= s.d[q]) {
+        out = false;
+        break;
+      }
+    if (out) return false;
+  }
+  bool behind_i = true, behind_j = true;
+  for (const Vec3& v : poly) {
+    behind_i = behind_i && s.ni.dot(v) - s.oi <= s.eps;
+    behind_j = behind_j && s.nj.dot(v) - s.oj <= s.eps;
+  }
+  return !(behind_i || behind_j);
+}
+
+bool OccluderTree::may_block(const Shaft& s, int ia, int ib, int* hint) const {
   if (nodes_.empty()) return false;
+  if (hint && *hint >= 0 && *hint != ia && *hint != ib && item_may_block(s, *hint)) return true;
   int stack[64];
   int top = 0;
   stack[top++] = 0;
@@ -111,26 +133,8 @@ bool OccluderTree::may_block(const Shaft& s, int ia, int ib) const {
     }
     for (int k = nd.begin; k < nd.end; ++k) {
       const int p = items_[k];
-      if (p == ia || p == ib) continue;
-      if (box_outside(s, boxes_[p])) continue;
-      // Tighter: the occluder's own corners against the shaft planes and the two patch planes.
-      const auto poly = g_->polygon(p);
-      bool out = false;
-      for (int q = 0; q < s.planes && !out; ++q) {
-        out = true;
-        for (const Vec3& v : poly)
-          if (s.n[q].dot(v) <= s.d[q]) {
-            out = false;
-            break;
-          }
-      }
-      if (out) continue;
-      bool behind_i = true, behind_j = true;
-      for (const Vec3& v : poly) {
-        behind_i = behind_i && s.ni.dot(v) - s.oi <= s.eps;
-        behind_j = behind_j && s.nj.dot(v) - s.oj <= s.eps;
-      }
-      if (behind_i || behind_j) continue;
+      if (p == ia || p == ib || !item_may_block(s, p)) continue;
+      if (hint) *hint = p;
       return true;
     }
   }

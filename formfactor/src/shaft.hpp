@@ -39,8 +39,10 @@ class OccluderTree {
   OccluderTree() = default;
   OccluderTree(const mesh::PatchGeometry& g, const std::vector<int>& occluders);
   bool empty() const { return nodes_.empty(); }
-  // False only if no occluder other than patches ia and ib can meet the shaft (conservative).
-  bool may_block(const Shaft& s, int ia, int ib) const;
+  // False only if no occluder other than patches ia and ib can meet the shaft (conservative). `hint`, if
+  // given, is tested first and set to the occluder found: neighbouring pairs are mostly blocked by the same
+  // wall (an occluder cache; the answer is the same with or without it).
+  bool may_block(const Shaft& s, int ia, int ib, int* hint = nullptr) const;
 
  private:
   struct Node {
@@ -48,6 +50,7 @@ class OccluderTree {
     int left = -1, right = -1, begin = 0, end = 0;  // leaf if left < 0: items [begin, end)
   };
   int build(int begin, int end);
+  bool item_may_block(const Shaft& s, int p) const;
   const mesh::PatchGeometry* g_ = nullptr;
   std::vector<Node> nodes_;
   std::vector<int> items_;  // patch ids
