@@ -89,8 +89,9 @@ class Study {
  private:
   struct Assembly {
     std::shared_ptr<formfactor::DenseMatrixOperator> F;
+    std::shared_ptr<const solver::Solver> solver;  // on F (its row sums computed once for every solve)
     formfactor::Stats stats;
-    double seconds = 0;
+    double seconds = 0;  // form factors and the solver's set-up
   };
   Assembly assemble(const mesh::PatchGeometry& g, const Knob& k, int rays) const;
   void emit(Row r);
@@ -118,6 +119,7 @@ Study::Assembly Study::assemble(const mesh::PatchGeometry& g, const Knob& k, int
   Assembly a;
   const auto t = Clock::now();
   a.F = std::make_shared<formfactor::DenseMatrixOperator>(formfactor::assemble(g, ff, &a.stats));
+  a.solver = std::make_shared<const solver::Solver>(a.F, g.area);
   a.seconds = since(t);
   return a;
 }
@@ -132,13 +134,12 @@ void Study::emit(Row r) {
 
 void Study::solve_row(Row r, const mesh::PatchGeometry& g, const Assembly& a, const ColorField& rho,
                       const ColorField& Le, const Eigen::VectorXd& exact, solver::Method method, double tolerance) {
-  const solver::Solver S(a.F, g.area);
   solver::Options so;
   so.method = method;
   so.tolerance = tolerance;
   so.max_iterations = 200000;  // Jacobi at rho = 0.999 needs ~10^4 sweeps per decade of residual
   const auto t = Clock::now();
-  const solver::Solution s = S.solve(rho, Le, so);
+  const solver::Solution s = a.solver->solve(rho, Le, so);
   r.t_solve = since(t);
   r.t_ff = a.seconds;
   r.t_vis = a.stats.seconds.count("visibility") ? a.stats.seconds.at("visibility") : 0.0;
@@ -232,11 +233,10 @@ void Study::solver_methods() {
     for (int i = 0; i < g.size(); ++i)
       if (g.centroid[i].z() > 0.999 && g.normal[i].z() < -0.5) Le.row(i).setConstant(1.0);  // the ceiling
     // Reference: the discrete solution to 1e-13 (GMRES), so that the rows show the solver's error alone.
-    const solver::Solver S(a.F, g.area);
     solver::Options ref;
     ref.method = solver::Method::GMRES;
     ref.tolerance = 1e-13;
-    const Eigen::VectorXd exact = S.solve(R, Le, ref).radiance.col(0);
+    const Eigen::VectorXd exact = a.solver->solve(R, Le, ref).radiance.col(0);
     for (solver::Method m : {solver::Method::Jacobi, solver::Method::GaussSeidel, solver::Method::BiCGSTAB,
                              solver::Method::GMRES})
       for (double tol : tols) {
