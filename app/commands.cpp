@@ -16,6 +16,7 @@
 #include "lambert/solver/adaptive.hpp"
 #include "lambert/solver/solve.hpp"
 #include "lambert/solver/verify.hpp"
+#include "outputs.hpp"
 #include "progress.hpp"
 
 #ifndef LAMBERT_VERSION
@@ -44,6 +45,7 @@ mesh::PolygonSoup read_input(const CommonOptions& o, PhaseTimer& timer) {
   timer.start("load");
   mesh::PolygonSoup soup = io::read_soup(o.scene);
   if (!o.materials.empty()) io::apply_materials_json(soup, o.materials);
+  declare_soup_inputs(soup);  // an MTL library is an input too: never an output
   return soup;
 }
 
@@ -51,6 +53,7 @@ mesh::PrepareOptions prepare_options(const CommonOptions& o) {
   mesh::PrepareOptions prep;
   prep.repair = !o.no_repair;
   prep.max_edge = o.max_edge;
+  prep.max_patches = max_patches_in_memory();  // refuse a --max-edge whose patches cannot be solved
   return prep;
 }
 
@@ -86,7 +89,7 @@ std::string phases_line(const PhaseTimer& t) {
 }
 
 void write_json(const std::string& path, const json& j) {
-  io::write_file_atomically(path, [&](std::ostream& os) { os << j.dump(2) << '\n'; });
+  write_output(path, [&](std::ostream& os) { os << j.dump(2) << '\n'; });
 }
 
 formfactor::Options ff_options(const CommonOptions& o, Progress* progress) {
@@ -216,7 +219,7 @@ int run_formfactors(const CommonOptions& o) {
   timer.start("aggregate");
   const auto entries = formfactor::aggregate_to_faces(F, scene.geometry, scene.face_id, scene.input_faces);
   timer.start("write");
-  io::write_file_atomically(o.output, [&](std::ostream& os) {
+  write_output(o.output, [&](std::ostream& os) {
     std::string buf;
     buf.reserve(1 << 20);
     for (const auto& e : entries) {
@@ -238,6 +241,7 @@ int run_formfactors(const CommonOptions& o) {
     j["residual"] = 0.0;
     write_json(o.stats, j);
   }
+  commit_outputs();  // all outputs or none
   if (!o.quiet) {
     std::string s = fmt::format("lambert formfactors {}\n", o.scene) + scene_line(scene) + ff_summary(st);
     s += fmt::format("  phases       {}\n  output       {} ({} nonzero entries)\n", phases_line(timer), o.output, entries.size());
@@ -266,7 +270,7 @@ int finish_solve(const CommonOptions& o, const mesh::Scene& scene, const solver:
     return 3;
   }
   timer.start("write");
-  io::write_vtu(o.output, scene, sol.radiance, sol.irradiance, o.crease_deg);
+  write_output(o.output, [&](std::ostream& os) { io::write_vtu(os, scene, sol.radiance, sol.irradiance, o.crease_deg); });
   timer.stop();
 
   int max_iterations = 0;
@@ -294,6 +298,7 @@ int finish_solve(const CommonOptions& o, const mesh::Scene& scene, const solver:
                    {"balance_residual", sol.energy_residual}};
     write_json(o.stats, j);
   }
+  commit_outputs();  // all outputs or none
   if (!o.quiet) {
     std::string s = fmt::format("lambert solve {}\n", o.scene) + scene_line(scene) + detail;
     s += fmt::format("  solve        {}, {} channel(s), iterations {}, residual {:.2e}\n", solver::to_string(sol.method),
@@ -308,6 +313,7 @@ int finish_solve(const CommonOptions& o, const mesh::Scene& scene, const solver:
 
 // --adaptive-budget: solve coarse, split where the estimated error is (solver/adaptive.hpp), re-solve.
 int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseTimer& timer) {
+  check_adaptive_budget(o);  // before any work
   mesh::PolygonSoup soup = read_input(o, timer);
   timer.start("prepare");
   mesh::Report prep_report;

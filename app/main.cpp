@@ -10,10 +10,12 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <limits>
 #include <optional>
 #include <thread>
 
 #include "commands.hpp"
+#include "outputs.hpp"
 #include "study.hpp"
 #include "lambert/formfactor/assemble.hpp"
 #include "lambert/solver/solve.hpp"
@@ -25,7 +27,35 @@
 
 using namespace lambert;
 
+namespace {
+
+// Numeric option checks. CLI11's Range lets NaN through (every comparison with NaN is false) and prints
+// its bounds with std::to_string (DBL_MAX as 309 digits); these reject NaN and infinities for every
+// numeric option and print bounds with %g.
+CLI::Validator number_in(double lo, double hi, bool lo_open, const std::string& what) {
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        const char* begin = text.c_str();
+        char* end = nullptr;
+        const double v = std::strtod(begin, &end);
+        if (end == begin || *end != '\0') return "'" + text + "' is not a number";
+        if (!std::isfinite(v)) return "'" + text + "' is not a finite number; expected " + what;
+        if ((lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) return "value " + text + " is out of range; expected " + what;
+        return {};
+      },
+      "", "");
+}
+const double kMax = std::numeric_limits<double>::max();
+const CLI::Validator Positive = number_in(0, kMax, true, "a number > 0");
+const CLI::Validator NonNegative = number_in(0, kMax, false, "a number >= 0");
+CLI::Validator Between(double lo, double hi) {
+  return number_in(lo, hi, false, fmt::format("a number in [{}, {}]", lo, hi));
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  io::remove_temporaries_on_signal();  // an interrupted run leaves no temporary behind
   CLI::App app{
       "lambert " LAMBERT_VERSION " - radiosity (diffuse interreflection) solver.\n"
       "Reads OBJ+MTL / PLY / OFF scenes (metres; MTL Kd = diffuse reflectance, Ke = emitted radiance in\n"
@@ -45,7 +75,7 @@ int main(int argc, char** argv) {
                     "JSON file mapping material names or input-face ranges to reflectance and emission "
                     "(overrides MTL values; see README)")
         ->check(CLI::ExistingFile);
-    sub->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+    sub->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(Positive);
     sub->add_flag("--quiet,-q", common.quiet, "No progress lines, warnings or summary on stderr (errors still print)");
     if (with_output) sub->add_option("--stats", common.stats, "Write run statistics as JSON to this file");
     sub->add_flag("--no-repair", common.no_repair,
@@ -53,14 +83,14 @@ int main(int argc, char** argv) {
                   "(self-intersections and T-junctions are still reported)");
     sub->add_option("--max-edge", common.max_edge,
                     "Refine: split every edge longer than this (metres) so no patch edge exceeds it; 0 = off")
-        ->check(CLI::NonNegativeNumber)
+        ->check(NonNegative)
         ->capture_default_str();
   };
   auto add_formfactor = [&](CLI::App* sub, const char* tolerance_flag) {
     sub->add_flag("--no-visibility", common.no_visibility, "Ignore occlusion (every pair sees each other fully)");
     sub->add_option(tolerance_flag, common.ff_tolerance,
                     "Absolute error bound on each unoccluded form factor F_ij")
-        ->check(CLI::PositiveNumber)
+        ->check(Positive)
         ->capture_default_str();
     sub->add_option(std::string(tolerance_flag) == "--tolerance" ? "--rule" : "--ff-rule", common.ff_rule,
                     "Form-factor rule: adaptive (error-controlled by the tolerance), or a fixed rule for comparison: "
@@ -70,7 +100,7 @@ int main(int argc, char** argv) {
                                "gauss7", "gauss8"}))
         ->capture_default_str();
     sub->add_option("--rays", common.rays_per_pair, "Visibility rays per pair that may be partially occluded")
-        ->check(CLI::PositiveNumber)
+        ->check(Positive)
         ->capture_default_str();
   };
 
@@ -81,28 +111,28 @@ int main(int argc, char** argv) {
   add_formfactor(solve, "--ff-tolerance");
   solve->add_option("--method", common.method, "Solver: auto, jacobi, gauss-seidel, bicgstab, gmres")->capture_default_str();
   solve->add_option("--tolerance", common.solve_tolerance, "Relative residual at which the solve stops")
-      ->check(CLI::PositiveNumber)
+      ->check(Positive)
       ->capture_default_str();
   solve->add_option("--max-iterations", common.max_iterations, "Iteration limit per channel")
-      ->check(CLI::PositiveNumber)
+      ->check(Positive)
       ->capture_default_str();
   solve->add_option("--crease", common.crease_deg,
                     "Per-vertex averages never cross an edge whose normals differ by more than this (degrees)")
-      ->check(CLI::Range(0.0, 180.0))
+      ->check(Between(0.0, 180.0))
       ->capture_default_str();
   solve->add_option("--adaptive-budget", common.adaptive_budget,
                     "Adaptive refinement up to this many patches: solve, estimate per patch the radiance variation "
                     "it does not resolve (jumps to neighbours, direct light and shadow edges across it, B.F "
                     "gather), split the patches carrying half of the estimated error, re-solve (docs/adaptive.md); "
                     "0 = off")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative)
       ->capture_default_str();
   solve->add_option("--adaptive-tol", common.adaptive_tolerance,
                     "Stop refining when the estimated relative L2 error of the radiance is at most this")
-      ->check(CLI::PositiveNumber)
+      ->check(Positive)
       ->capture_default_str();
   solve->add_option("--adaptive-rounds", common.adaptive_rounds, "Refinement rounds at most (solves = rounds + 1)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(NonNegative)
       ->capture_default_str();
 
   // info
@@ -120,16 +150,16 @@ int main(int argc, char** argv) {
   verify->require_subcommand(1);
   app::VerifyOptions vo;
   auto* sphere = verify->add_subcommand("sphere", "Closed icosphere with inward normals: exact answer E0/(1-rho), or the continuum formula");
-  sphere->add_option("--subdivisions", vo.subdivisions, "Icosphere subdivision level K (20*4^K triangles)")->check(CLI::Range(0, 6));
-  sphere->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
+  sphere->add_option("--subdivisions", vo.subdivisions, "Icosphere subdivision level K (20*4^K triangles)")->check(Between(0, 6));
+  sphere->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(Between(0.0, 0.999999999));
   sphere->add_option("--emission", vo.emission, "uniform | cap | linear")->check(CLI::IsMember({"uniform", "cap", "linear"}));
   sphere->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres");
-  sphere->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  sphere->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(Positive);
   auto* furnace = verify->add_subcommand("furnace", "Closed room with an occluding block, uniform E0 and rho: exact answer E0/(1-rho)");
-  furnace->add_option("--divisions", vo.divisions, "Quads per room face edge")->check(CLI::Range(1, 64));
-  furnace->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
+  furnace->add_option("--divisions", vo.divisions, "Quads per room face edge")->check(Between(1, 64));
+  furnace->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(Between(0.0, 0.999999999));
   furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres");
-  furnace->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  furnace->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(Positive);
 
   // study
   app::StudyOptions so;
@@ -138,19 +168,21 @@ int main(int argc, char** argv) {
                "(plots: scripts/plot_study.py; see docs/accuracy.md)");
   study->add_option("--out", so.out, "Output directory")->capture_default_str();
   study->add_flag("--quick", so.quick, "The small grid CI runs (under 2 minutes on 2 cores)");
-  study->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
+  study->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(Positive);
   study->add_flag("--quiet,-q", so.quiet, "No per-run lines on stderr");
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version exit 0; every command-line error is bad input: exit 1 (not CLI11's 104..109).
+    return app.exit(e) == 0 ? 0 : 1;
   }
 
   std::optional<tbb::global_control> threads;
   if (common.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(common.threads));
 
   try {
+    if (solve->parsed() || ff->parsed()) app::declare_files(common);  // refuse bad output paths before any work
     if (solve->parsed()) return app::run_solve(common);
     if (info->parsed()) return app::run_info(common);
     if (ff->parsed()) return app::run_formfactors(common);
@@ -163,6 +195,9 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "lambert: error: out of memory\n");
     return 1;
+  } catch (const InternalError& e) {
+    std::fprintf(stderr, "lambert: internal error: %s\n", e.what());
+    return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "lambert: internal error: %s\n", e.what());
     return 2;

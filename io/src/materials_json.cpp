@@ -1,6 +1,9 @@
 // --materials FILE.json: material overrides and per-face-range assignment.
+#include <algorithm>
 #include <cmath>
+#include <queue>
 #include <set>
+#include <unordered_map>
 
 #include <nlohmann/json.hpp>
 
@@ -20,13 +23,16 @@ class JsonMaterials {
   void run() {
     std::string text = detail::read_file(path_);
     json doc;
+    // SAX parse into the DOM, keeping the position of the first error: a number out of the range of a
+    // double (1e400) is reported with its line and column like a syntax error.
+    Located sax(doc);
     try {
-      doc = json::parse(text, nullptr, /*allow_exceptions=*/true, /*ignore_comments=*/true);
-    } catch (const json::parse_error& e) {
-      syntax_error(text, e);
-    } catch (const json::exception& e) {  // e.g. a number too large for a double
+      json::sax_parse(text, &sax, nlohmann::detail::input_format_t::json, /*strict=*/true, /*ignore_comments=*/true);
+    } catch (const json::exception& e) {
       error("", std::string("cannot parse: ") + e.what());
     }
+    if (sax.failed) located_error(text, sax.byte, sax.token, sax.what);
+    for (std::size_t i = 0; i < soup_.materials.size(); ++i) by_name_.emplace(soup_.materials[i].name, static_cast<int>(i));
     if (!doc.is_object()) error("", "the top level is " + kind(doc) + "; expected an object {\"materials\": ..., \"faces\": ...}");
     for (auto& [key, value] : doc.items())
       if (key != "materials" && key != "faces")
@@ -44,9 +50,24 @@ class JsonMaterials {
   }
 
  private:
-  [[noreturn]] void syntax_error(const std::string& text, const json::parse_error& e) {
-    // e.byte: 1-based index of the last character read.
-    std::size_t end = std::min<std::size_t>(e.byte > 0 ? e.byte - 1 : 0, text.size());
+  // The DOM builder, stopping at the first error and keeping where it was (byte: 1-based index of the
+  // last character read).
+  struct Located : nlohmann::detail::json_sax_dom_parser<json> {
+    explicit Located(json& j) : nlohmann::detail::json_sax_dom_parser<json>(j, false) {}
+    bool parse_error(std::size_t position, const std::string& last_token, const nlohmann::detail::exception& ex) {
+      failed = true;
+      byte = position;
+      token = last_token;
+      what = ex.what();
+      return false;
+    }
+    bool failed = false;
+    std::size_t byte = 0;
+    std::string token, what;
+  };
+
+  [[noreturn]] void located_error(const std::string& text, std::size_t byte, const std::string& token, std::string what) {
+    std::size_t end = std::min<std::size_t>(byte > 0 ? byte - 1 : 0, text.size());
     int line = 1;
     std::size_t line_start = 0;
     for (std::size_t i = 0; i < end; ++i)
@@ -55,10 +76,13 @@ class JsonMaterials {
         line_start = i + 1;
       }
     std::size_t column = end - line_start + 1;
-    std::string what = e.what();
+    if (what.find("number overflow") != std::string::npos)
+      detail::fail(path_, line, "column " + std::to_string(column) + ": number " + quote(token) +
+                                    " is out of the range of a double; expected a finite number");
     std::size_t col = what.find("column ");
     std::size_t colon = col == std::string::npos ? std::string::npos : what.find(": ", col);
     if (colon != std::string::npos) what = what.substr(colon + 2);
+    else if (const auto bracket = what.find("] "); bracket != std::string::npos) what = what.substr(bracket + 2);
     detail::fail(path_, line, "column " + std::to_string(column) + ": JSON syntax error: " + what);
   }
 
@@ -102,13 +126,14 @@ class JsonMaterials {
     error(where, "found " + kind(j) + "; expected a number or an array of 1 or 3 numbers");
   }
 
+  // First material with this name (hash map: O(1) instead of a scan of all materials).
   int find(const std::string& name) const {
-    for (std::size_t i = 0; i < soup_.materials.size(); ++i)
-      if (soup_.materials[i].name == name) return static_cast<int>(i);
-    return -1;
+    const auto it = by_name_.find(name);
+    return it == by_name_.end() ? -1 : it->second;
   }
 
   int add(const std::string& name) {
+    by_name_.emplace(name, static_cast<int>(soup_.materials.size()));
     mesh::Material m;
     m.name = name;
     m.defined_at = SourceLoc{path_, 0};
@@ -139,6 +164,12 @@ class JsonMaterials {
   void faces(const json& j) {
     if (!j.is_array()) error("\"faces\"", "found " + kind(j) + "; expected an array of {\"range\": [first, last], ...}");
     const long long nf = static_cast<long long>(soup_.faces.size());
+    struct Assign {
+      long long first, last;
+      int material;
+    };
+    std::vector<Assign> assign;  // entry order: later entries win
+    assign.reserve(j.size());
     for (std::size_t e = 0; e < j.size(); ++e) {
       const json& entry = j[e];
       std::string where = "\"faces\"[" + std::to_string(e) + "]";
@@ -169,7 +200,11 @@ class JsonMaterials {
                                          "; expected a material from the scene file or from \"materials\"");
       } else if (inline_values) {
         std::string base = "faces_" + std::to_string(a) + "-" + std::to_string(b), name = base;
-        for (int k = 2; find(name) >= 0; ++k) name = base + "_" + std::to_string(k);
+        if (find(name) >= 0) {  // faces_A-B_2, _3, ...: the next free suffix, remembered per base name
+          int& k = next_suffix_.try_emplace(base, 2).first->second;
+          do name = base + "_" + std::to_string(k++);
+          while (find(name) >= 0);
+        }
         RGB refl = RGB::Constant(0.5), emit = RGB::Zero();
         if (entry.contains("reflectance")) refl = colour(entry["reflectance"], where + ".reflectance");
         if (entry.contains("emission")) emit = colour(entry["emission"], where + ".emission");
@@ -180,17 +215,35 @@ class JsonMaterials {
       } else {
         error(where, "no \"material\" and no \"reflectance\"/\"emission\"; expected one of them");
       }
-      for (long long k = a; k <= b; ++k) {
-        mesh::SoupFace& f = soup_.faces[k];
-        if (f.material == 0 && m != 0 && soup_.faces_without_material > 0) --soup_.faces_without_material;
-        f.material = m;
+      assign.push_back({a, b, m});
+    }
+    // Each face gets the material of the last entry whose range holds it: one sweep over the faces with
+    // a heap of the open ranges (latest entry on top), O((faces + entries) log entries) instead of
+    // touching every face of every range.
+    std::vector<int> by_start(assign.size());
+    for (std::size_t e = 0; e < assign.size(); ++e) by_start[e] = static_cast<int>(e);
+    std::sort(by_start.begin(), by_start.end(), [&](int x, int y) { return assign[x].first < assign[y].first; });
+    std::priority_queue<int> open;  // entry indices
+    std::size_t next = 0;
+    for (long long k = 0; k < nf && (next < by_start.size() || !open.empty()); ++k) {
+      while (next < by_start.size() && assign[by_start[next]].first == k) open.push(by_start[next++]);
+      while (!open.empty() && assign[open.top()].last < k) open.pop();
+      if (open.empty()) {
+        if (next < by_start.size()) k = assign[by_start[next]].first - 1;  // skip to the next range
+        continue;
       }
+      mesh::SoupFace& f = soup_.faces[k];
+      const int m = assign[open.top()].material;
+      if (f.material == 0 && m != 0 && soup_.faces_without_material > 0) --soup_.faces_without_material;
+      f.material = m;
     }
   }
 
   mesh::PolygonSoup& soup_;
   std::string path_;
   std::set<int> touched_;  // materials defined or changed by this file
+  std::unordered_map<std::string, int> by_name_;      // material name -> first index
+  std::unordered_map<std::string, int> next_suffix_;  // "faces_A-B" -> next k to try for "faces_A-B_k"
 };
 
 }  // namespace

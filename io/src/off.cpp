@@ -29,6 +29,13 @@ class OffReader {
       first = 0;
     }
     counts(first);
+    // A count cannot promise more than the file holds: a vertex line takes at least 6 bytes ("0 0 0\n"),
+    // a face line 8 ("3 0 1 2\n"). Refused before any allocation.
+    const double need = 6.0 * double(nv_) + 8.0 * double(nf_) - 1;
+    if (need > double(text.size() - lines.offset()))
+      fail(path_, counts_line_, "the counts promise " + std::to_string(nv_) + " vertices and " + std::to_string(nf_) +
+                                    " faces, at least " + detail::format_double(need) + " bytes, but the file has only " +
+                                    std::to_string(text.size() - lines.offset()) + " bytes after this line");
 
     soup_.positions.reserve(nv_);
     for (long long i = 0; i < nv_; ++i) {

@@ -119,6 +119,13 @@ class Source {
 
   int line() const { return format_ == Format::ascii ? line_ : 0; }
 
+  // Whether n more values of type t can still be in the data (ascii: on this line; binary: in the bytes
+  // left). Checked before a list is allocated: a count cannot promise more than the file holds.
+  bool can_hold(double n, Type t) const {
+    if (format_ == Format::ascii) return n <= static_cast<double>(tok_.size() - next_tok_);
+    return n * type_size(t) <= static_cast<double>(data_.size() - pos_);
+  }
+
  private:
   double ascii_value(Type t, const Property& prop, bool need_finite) {
     if (next_tok_ >= tok_.size())
@@ -207,6 +214,7 @@ class PlyReader {
   mesh::PolygonSoup run() {
     text_ = detail::read_file(path_);
     std::size_t data_start = header();
+    check_counts(text_.size() - data_start);
     Source src(path_, std::string_view(text_).substr(data_start), format_, header_lines_ + 1);
     for (const Element& e : elements_) {
       if (e.name == "vertex") vertices(src, e);
@@ -286,6 +294,23 @@ class PlyReader {
     return lines.offset();
   }
 
+  // Each element instance takes at least a fixed number of bytes (binary: its scalars and list counts;
+  // ascii: one character and one separator per value), so the header's counts cannot promise more than
+  // the data holds: refused here, before any allocation, naming the element line.
+  void check_counts(std::size_t data_bytes) const {
+    double need = 0;
+    for (const Element& e : elements_) {
+      double per = 0;
+      for (const Property& p : e.props)
+        per += format_ == Format::ascii ? 2.0 : static_cast<double>(type_size(p.list ? p.count_type : p.type));
+      need += static_cast<double>(e.count) * std::max(per, 1.0);
+      if (need > static_cast<double>(data_bytes) + 1)
+        fail(path_, e.line, "element '" + e.name + "' count " + std::to_string(e.count) +
+                                " cannot fit in the file: the data after the header has " + std::to_string(data_bytes) +
+                                " bytes, at least " + detail::format_double(need) + " needed for the counts declared up to here");
+    }
+  }
+
   void check_roles() {
     for (const Element& el : elements_) {
       auto find = [&](std::string_view name) -> int {
@@ -343,6 +368,9 @@ class PlyReader {
   void skip_list(Source& src, const Property& p) {
     double n = src.value(p.count_type, p, false);
     if (n < 0) src.error("list property '" + p.name + "' has negative length " + detail::format_double(n));
+    if (!src.can_hold(n, p.type))
+      src.error("list property '" + p.name + "' has length " + detail::format_double(n) + ", more values than the rest of the " +
+                "data holds");
     for (long long i = 0; i < static_cast<long long>(n); ++i) src.value(p.type, p, false);
   }
 
@@ -380,6 +408,8 @@ class PlyReader {
         if (static_cast<int>(pi) == indices_prop_) {
           double n = src.value(prop.count_type, prop, true);
           if (n < 3) src.error("face has " + detail::format_double(n) + " vertices; expected at least 3");
+          if (!src.can_hold(n, prop.type))
+            src.error("face has " + detail::format_double(n) + " vertices, more values than the rest of the data holds");
           f.vertices.clear();
           f.vertices.reserve(static_cast<std::size_t>(n));
           for (long long i = 0; i < static_cast<long long>(n); ++i) {

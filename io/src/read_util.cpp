@@ -2,6 +2,11 @@
 
 #include "lambert/io/atomic_file.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -17,18 +22,46 @@ void fail(const std::string& file, int line, const std::string& what) {
 }
 
 bool try_read_file(const std::string& path, std::string& out, std::string& error) {
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"), &std::fclose);
-  if (!f) {
+  // Regular files only: a FIFO would block forever and a device (/dev/zero) never ends. O_NONBLOCK keeps
+  // open() itself from blocking on a FIFO without a writer; the size read is the size fstat reports.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
     error = std::strerror(errno);
     return false;
   }
-  out.clear();
-  char buf[1 << 16];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, f.get())) > 0) out.append(buf, n);
-  if (std::ferror(f.get())) {  // e.g. EISDIR: fopen succeeds on a directory, fread fails
+  std::unique_ptr<int, void (*)(int*)> guard(new int(fd), [](int* p) {
+    ::close(*p);
+    delete p;
+  });
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
     error = std::strerror(errno);
     return false;
+  }
+  if (!S_ISREG(st.st_mode)) {
+    error = S_ISDIR(st.st_mode)    ? "it is a directory"
+            : S_ISFIFO(st.st_mode) ? "it is a FIFO (named pipe); expected a regular file"
+            : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "it is a device; expected a regular file"
+                                                          : "not a regular file";
+    return false;
+  }
+  const int flags = ::fcntl(fd, F_GETFL);
+  if (flags >= 0) ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
+  out.clear();
+  out.reserve(static_cast<std::size_t>(st.st_size));
+  char buf[1 << 16];
+  // At most the size fstat reported (a file growing while read is not followed).
+  std::size_t left = static_cast<std::size_t>(st.st_size);
+  while (left > 0) {
+    const ssize_t n = ::read(fd, buf, std::min(left, sizeof buf));
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      error = std::strerror(errno);
+      return false;
+    }
+    if (n == 0) break;
+    out.append(buf, static_cast<std::size_t>(n));
+    left -= static_cast<std::size_t>(n);
   }
   return true;
 }

@@ -92,7 +92,7 @@ struct ErrorCollector {
 
 }  // namespace
 
-void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorField& radiance,
+void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& radiance,
                const ColorField& irradiance, double crease_angle_deg) {
   check_rows(radiance, scene, "radiance");
   check_rows(irradiance, scene, "irradiance");
@@ -171,7 +171,6 @@ void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorFie
   grid->GetFieldData()->AddArray(names);
   grid->GetFieldData()->AddArray(source);
 
-  const std::string tmp = temporary_sibling(path);
   ErrorCollector errors;
   vtkNew<vtkCallbackCommand> observer;
   observer->SetCallback(&ErrorCollector::callback);
@@ -185,19 +184,25 @@ void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorFie
   pipeline_observer->SetCallback(&ErrorCollector::callback);
   pipeline_observer->SetClientData(&pipeline_errors);
   writer->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, pipeline_observer);
-  writer->SetFileName(tmp.c_str());
+  // Into memory, then into our stream: file errors (a full disk) are reported by the caller's stream
+  // checks with a clear message, not by VTK's file layer.
+  writer->WriteToOutputStringOn();
   writer->SetDataModeToAppended();
   writer->EncodeAppendedDataOff();  // raw binary: smaller and faster than base64
   writer->SetCompressorTypeToZLib();
   writer->SetHeaderTypeToUInt64();  // block sizes above 4 GiB stay representable
   const int ok = writer->Write();
   if (ok != 1 || writer->GetErrorCode() != 0 || !errors.messages.empty()) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
     const std::string& why = errors.messages.empty() ? pipeline_errors.messages : errors.messages;
-    throw InputError("cannot write VTK file '" + path + "'" + (why.empty() ? std::string() : ": " + why));
+    throw InputError("cannot write VTK data" + (why.empty() ? std::string() : ": " + why));
   }
-  commit_temporary(tmp, path);
+  const std::string data = writer->GetOutputString();
+  out.write(data.data(), static_cast<std::streamsize>(data.size()));
+}
+
+void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorField& radiance,
+               const ColorField& irradiance, double crease_angle_deg) {
+  write_file_atomically(path, [&](std::ostream& os) { write_vtu(os, scene, radiance, irradiance, crease_angle_deg); });
 }
 
 }  // namespace lambert::io

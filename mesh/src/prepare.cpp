@@ -115,11 +115,50 @@ double length_tolerance(const PolygonSoup& s, double relative) {
 
 using detail::UnionFind;
 
+// Local scale of each used vertex for welding: the shortest edge at it that is longer than the global
+// tolerance (edges shorter than that are what welding collapses), else its longest edge; infinite for a
+// vertex whose edges all have zero length. A pair is welded only when it is closer than
+// kLocalWeldShare of both vertices' scales, so one far outlier vertex (which inflates the bounding
+// box, hence the global tolerance) cannot weld a scene's real corners together: welding stays a repair of
+// round-off, never a change of shape.
+constexpr double kLocalWeldShare = 0.01;
+
+std::vector<double> weld_scales(const PolygonSoup& s, double tol) {
+  const int nv = static_cast<int>(s.positions.size());
+  std::vector<double> shortest_long(nv, INFINITY), longest(nv, 0);
+  for (const auto& f : s.faces) {
+    const size_t m = f.vertices.size();
+    for (size_t c = 0; c < m; ++c) {
+      const int a = f.vertices[c], b = f.vertices[(c + 1) % m];
+      const double len = (s.positions[a] - s.positions[b]).norm();
+      for (int v : {a, b}) {
+        longest[v] = std::max(longest[v], len);
+        if (len > tol) shortest_long[v] = std::min(shortest_long[v], len);
+      }
+    }
+  }
+  std::vector<double> scale(nv);
+  for (int v = 0; v < nv; ++v)
+    scale[v] = std::isfinite(shortest_long[v]) ? shortest_long[v] : longest[v] > 0 ? longest[v] : INFINITY;
+  return scale;
+}
+
 void weld(PolygonSoup& s, double tol, Report& report) {
   const int nv = static_cast<int>(s.positions.size());
   std::vector<char> used(nv, 0);
   for (const auto& f : s.faces)
     for (int v : f.vertices) used[v] = 1;
+  const std::vector<double> scale = weld_scales(s, tol);
+  long kept_apart = 0;  // pairs within the global tolerance but not the local one
+  auto close = [&](int v, int w) {
+    const double d = (s.positions[w] - s.positions[v]).norm();
+    if (d > tol) return false;
+    if (d > kLocalWeldShare * std::min(scale[v], scale[w])) {
+      ++kept_apart;
+      return false;
+    }
+    return true;
+  };
   UnionFind uf(nv);
   double extent = 0;
   for (int v = 0; v < nv; ++v)
@@ -148,7 +187,7 @@ void weld(PolygonSoup& s, double tol, Report& report) {
             const auto it = grid.find({c[0] + dx, c[1] + dy, c[2] + dz});
             if (it == grid.end()) continue;
             for (int w : it->second)
-              if (w < v && (s.positions[w] - s.positions[v]).norm() <= tol) uf.unite(v, w);
+              if (w < v && close(v, w)) uf.unite(v, w);
           }
     }
   } else {
@@ -172,6 +211,11 @@ void weld(PolygonSoup& s, double tol, Report& report) {
   for (auto& f : s.faces)
     for (int& v : f.vertices) v = uf.find(v);
   report.counts["vertices_merged"] += 0;
+  if (kept_apart > 0)
+    report.warn("vertices_not_merged", kept_apart,
+                plural(kept_apart, "pair of vertices", "pairs of vertices") + " within the weld tolerance " + num(tol) +
+                    " m were kept apart: closer than that, but not much closer than their own edges (" +
+                    num(100 * kLocalWeldShare) + " % of the shortest edge at them), so welding would change the shape");
   if (merged > 0)
     report.warn("vertices_merged", merged,
                 plural(merged, "vertex was", "vertices were") + " merged into a vertex closer than " + num(tol) +
@@ -725,7 +769,7 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
   for (size_t k = 0; k < out.faces.size(); ++k) usable[k] = usable_face(out, static_cast<int>(k));
   detect_self_intersections(out, usable, tol, report);
   detect_t_junctions(out, usable, tol, report);
-  if (options.max_edge > 0) refine(out, options.max_edge, report);
+  if (options.max_edge > 0) refine(out, options.max_edge, report, options.max_patches);
   return out;
 }
 

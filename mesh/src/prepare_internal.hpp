@@ -26,6 +26,7 @@ std::string id_list(std::vector<int> ids, int shown = 5);
 std::string num(double x);
 
 // Refinement step (prepare_refine.cpp): splits faces in place, appends positions, counts.
-void refine(PolygonSoup& soup, double max_edge, Report& report);
+// Throws InputError before changing anything when the estimated patch count exceeds max_patches (> 0).
+void refine(PolygonSoup& soup, double max_edge, Report& report, long long max_patches = 0);
 
 }  // namespace lambert::mesh::detail

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <deque>
+#include <limits>
 #include <numeric>
 #include <string>
 #include <unordered_map>
@@ -142,26 +143,29 @@ class Bisection {
 
 class Refiner {
  public:
-  Refiner(PolygonSoup& s, double max_edge) : s_(s), L_(max_edge) {}
+  Refiner(PolygonSoup& s, double max_edge, long long max_patches) : s_(s), L_(max_edge), max_patches_(max_patches) {}
 
   void run(Report& report) {
     const int nf = static_cast<int>(s_.faces.size());
     classify();
-    // Pieces per edge class: ceil(length / L), ignoring excess below 1e-13 relative (2.7 / 0.3).
-    std::vector<int> count(uf_.parent.size(), 1);
+    // Pieces per edge class: ceil(length / L), ignoring excess below 1e-13 relative (2.7 / 0.3). In
+    // double first: the count can exceed an int (1e-9 m pieces of a 10 m edge), which the estimate refuses.
+    std::vector<double> count(uf_.parent.size(), 1);
     for (int e = 0; e < static_cast<int>(ends_.size()); ++e) {
       const double len = (s_.positions[ends_[e][1]] - s_.positions[ends_[e][0]]).norm();
-      const int n = std::max(1, static_cast<int>(std::ceil(len / L_ * (1 - 1e-13))));
+      const double n = std::max(1.0, std::ceil(len / L_ * (1 - 1e-13)));
       count[uf_.find(e)] = std::max(count[uf_.find(e)], n);
     }
-    pieces_.resize(ends_.size());
-    for (int e = 0; e < static_cast<int>(ends_.size()); ++e) pieces_[e] = count[uf_.find(e)];
+    std::vector<double> split(ends_.size());
+    for (int e = 0; e < static_cast<int>(ends_.size()); ++e) split[e] = count[uf_.find(e)];
     std::vector<char> refined(nf, 0);
     for (int k = 0; k < nf; ++k) {
       if (kind_[k] == Kind::Skip) continue;
-      for (int e : face_edges_[k]) refined[k] |= pieces_[e] > 1;
+      for (int e : face_edges_[k]) refined[k] |= split[e] > 1;
       if (s_.faces[k].vertices.size() >= 5) refined[k] |= diameter(k) > 2 * L_;
     }
+    check_estimate(estimate(split, refined));
+    pieces_.assign(split.begin(), split.end());
     // Edge points, shared by all faces on the edge (vertex indices from the lower to the higher end).
     points_.resize(ends_.size());
     for (int e = 0; e < static_cast<int>(ends_.size()); ++e) {
@@ -255,6 +259,43 @@ class Refiner {
       for (size_t j = i + 1; j < fv.size(); ++j)
         d2 = std::max(d2, (s_.positions[fv[i]] - s_.positions[fv[j]]).squaredNorm());
     return std::sqrt(d2);
+  }
+
+  // Patches after refinement: exact for quad grids (n x m) and uniformly split triangles (n^2); other
+  // faces from their area (the lattice of spacing L has ~2 / (sqrt(3) / 2 L^2) triangles per unit area,
+  // bisection adds some) plus their boundary pieces.
+  double estimate(const std::vector<double>& pieces, const std::vector<char>& refined) const {
+    double total = 0;
+    for (int k = 0; k < static_cast<int>(s_.faces.size()); ++k) {
+      if (!refined[k]) {
+        total += 1;
+        continue;
+      }
+      const auto& fe = face_edges_[k];
+      if (kind_[k] == Kind::Quad) {
+        total += pieces[fe[0]] * pieces[fe[1]];
+      } else if (kind_[k] == Kind::Tri && pieces[fe[0]] == pieces[fe[1]] && pieces[fe[1]] == pieces[fe[2]]) {
+        total += pieces[fe[0]] * pieces[fe[0]];
+      } else {
+        const double area = 0.5 * newell_normal(corners(s_, k)).norm();
+        double boundary = 0;
+        for (size_t i = 0; i < s_.faces[k].vertices.size() && i < fe.size(); ++i) boundary += pieces[fe[i]];
+        total += 2.0 * area / (std::sqrt(3.0) / 2 * L_ * L_) + boundary;
+      }
+    }
+    return total;
+  }
+
+  void check_estimate(double patches) const {
+    const double int_max = double(std::numeric_limits<int>::max());
+    const double limit = max_patches_ > 0 ? std::min(double(max_patches_), int_max) : int_max;
+    if (patches <= limit) return;
+    // Patches scale as 1 / L^2 (area-dominated): the L that would give the limit.
+    const double fits = L_ * std::sqrt(patches / limit);
+    throw InputError("refinement to edges of at most " + num(L_) + " m (--max-edge) would make about " + num(patches) +
+                     " patches, more than the " + num(limit) +
+                     (max_patches_ > 0 ? " whose form factors fit in memory" : " a patch index can count") +
+                     "; refused before refining: use a larger --max-edge (about " + num(fits) + " m or more)");
   }
 
   void classify() {
@@ -475,6 +516,7 @@ class Refiner {
 
   PolygonSoup& s_;
   double L_;
+  long long max_patches_;
   std::vector<Kind> kind_;
   std::vector<std::vector<std::array<int, 3>>> tris_;  // NonPlanar: triangulation (corner indices)
   std::vector<std::vector<int>> face_edges_;           // edge ids of each face (and its diagonals)
@@ -487,6 +529,8 @@ class Refiner {
 
 }  // namespace
 
-void refine(PolygonSoup& soup, double max_edge, Report& report) { Refiner(soup, max_edge).run(report); }
+void refine(PolygonSoup& soup, double max_edge, Report& report, long long max_patches) {
+  Refiner(soup, max_edge, max_patches).run(report);
+}
 
 }  // namespace lambert::mesh::detail

@@ -1,5 +1,6 @@
 #pragma once
 // ParaView output: the solved scene as a VTK XML unstructured grid (.vtu).
+#include <ostream>
 #include <string>
 
 #include "lambert/mesh/scene.hpp"
@@ -20,5 +21,9 @@ namespace lambert::io {
 // and renamed when complete; on failure the temporary is removed and lambert::InputError names `path`.
 void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorField& radiance,
                const ColorField& irradiance, double crease_angle_deg = mesh::VertexSplit::kDefaultCreaseDeg);
+// The same .vtu content into a binary stream (io::OutputSet::write); VTK errors throw InputError, stream
+// errors are the caller's to check.
+void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& radiance, const ColorField& irradiance,
+               double crease_angle_deg = mesh::VertexSplit::kDefaultCreaseDeg);
 
 }  // namespace lambert::io

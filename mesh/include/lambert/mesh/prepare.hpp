@@ -45,6 +45,8 @@
 // diameter exceeds 2 * max_edge (n-gons with short edges). Pieces keep material, group, line and
 // origin; they take the place of their face (face order is kept). Every output edge is
 // <= max_edge * (1 + 1e-12); total area is preserved to round-off.   "faces_refined", "patches_added"
+// The refined patch count is estimated before anything is split (exact for quads and uniformly split
+// triangles, from the area for other faces) and checked against max_patches.
 // (A face the mesher cannot refine, not expected for faces build_scene accepts, keeps its size and
 // is warned about: "faces_not_refined".)
 //
@@ -61,6 +63,10 @@ struct PrepareOptions {
   // vertices. 1e-6 (7 um in a 5 x 4 x 2.7 m room): above the rounding of files written with 6 digits,
   // far below any modelled detail. 0: exact duplicates only.
   double weld_tolerance = 1e-6;
+  // Refinement refuses (InputError with the estimate and a max_edge that would fit) before splitting
+  // anything when the refined scene would have more patches than this; 0 = no limit (the split counts
+  // must still fit an int).
+  long long max_patches = 0;
 };
 
 // Throws InputError (naming file, line and face) for corners out of range and non-finite positions

@@ -1,0 +1,88 @@
+// Large polygons: CGAL's constrained Delaunay triangulation, O(n log n) (geometry.cpp's ear clipping is
+// O(n^2) and kept for small polygons, where it is faster and its results are established).
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Constrained_triangulation_face_base_2.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_face_base_with_info_2.h>
+#include <CGAL/Triangulation_vertex_base_with_info_2.h>
+
+#include <deque>
+
+#include "triangulate_internal.hpp"
+
+namespace lambert::mesh::detail {
+
+namespace {
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Vb = CGAL::Triangulation_vertex_base_with_info_2<int, K>;
+using Fbi = CGAL::Triangulation_face_base_with_info_2<int, K>;
+using Fb = CGAL::Constrained_triangulation_face_base_2<K, Fbi>;
+using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
+// Crossing constraints throw: a polygon whose edges cross is not simple (no triangulation is returned).
+using CDT = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::No_constraint_intersection_tag>;
+}  // namespace
+
+std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2d>& p) {
+  const int m = static_cast<int>(p.size());
+  if (m < 3) return {};
+  // Counter-clockwise (the polygon's own winding seen from the normal) with non-zero area, as ear clipping.
+  double twice_area = 0;
+  for (int k = 0; k < m; ++k) {
+    const auto& a = p[k];
+    const auto& b = p[(k + 1) % m];
+    twice_area += (a.x() - p[0].x()) * (b.y() - p[0].y()) - (b.x() - p[0].x()) * (a.y() - p[0].y());
+  }
+  if (!(twice_area > 0)) return {};
+  try {
+    CDT cdt;
+    std::vector<CDT::Vertex_handle> vh(m);
+    CDT::Face_handle hint;
+    for (int k = 0; k < m; ++k) {
+      vh[k] = cdt.insert(K::Point_2(p[k].x(), p[k].y()), hint);  // neighbours along the boundary: short walks
+      if (vh[k]->info() != 0) return {};  // a repeated point: not simple
+      vh[k]->info() = k + 1;
+      hint = vh[k]->face();
+    }
+    for (int k = 0; k < m; ++k) cdt.insert_constraint(vh[k], vh[(k + 1) % m]);
+    // Inside = odd nesting level across constrained edges, counted from the infinite face.
+    for (auto f : cdt.all_face_handles()) f->info() = -1;
+    std::deque<std::pair<CDT::Face_handle, int>> border{{cdt.infinite_face(), 0}};
+    while (!border.empty()) {
+      auto [start, level] = border.front();
+      border.pop_front();
+      if (start->info() >= 0) continue;
+      std::deque<CDT::Face_handle> queue{start};
+      start->info() = level;
+      while (!queue.empty()) {
+        const auto f = queue.front();
+        queue.pop_front();
+        for (int i = 0; i < 3; ++i) {
+          const auto g = f->neighbor(i);
+          if (g->info() >= 0) continue;
+          if (cdt.is_constrained({f, i})) {
+            border.push_back({g, level + 1});
+          } else {
+            g->info() = level;
+            queue.push_back(g);
+          }
+        }
+      }
+    }
+    std::vector<std::array<int, 3>> tris;
+    tris.reserve(size_t(m - 2));
+    for (auto f : cdt.finite_face_handles()) {
+      if (f->info() != 1) {
+        if (f->info() > 1) return {};  // nested loops: not a simple polygon
+        continue;
+      }
+      tris.push_back({f->vertex(0)->info() - 1, f->vertex(1)->info() - 1, f->vertex(2)->info() - 1});
+    }
+    // A simple polygon with m corners and no inner points has exactly m - 2 triangles.
+    if (static_cast<int>(tris.size()) != m - 2) return {};
+    return tris;
+  } catch (const CDT::Intersection_of_constraints_exception&) {
+    return {};
+  }
+}
+
+}  // namespace lambert::mesh::detail

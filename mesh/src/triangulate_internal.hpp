@@ -1,0 +1,14 @@
+#pragma once
+// Internal: the O(n log n) triangulation behind mesh::triangulate_polygon for large polygons.
+#include <Eigen/Core>
+#include <array>
+#include <vector>
+
+namespace lambert::mesh::detail {
+
+// Constrained Delaunay triangulation (CGAL) of a simple polygon given by its 2D corners, counter-clockwise.
+// Corner-index triples, counter-clockwise; empty if the polygon is not simple (crossing or touching
+// edges, repeated corners), clockwise or of zero area.
+std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2d>& p);
+
+}  // namespace lambert::mesh::detail
