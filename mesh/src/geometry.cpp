@@ -31,7 +31,6 @@ double planarity_deviation(std::span<const Vec3> polygon) {
 }
 
 namespace {
-constexpr int kEarClippingMaxCorners = 64;
 // Twice the signed area of 2D triangle (a, b, c).
 double orient2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
   return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
@@ -55,7 +54,7 @@ std::vector<std::array<int, 3>> triangulate_polygon(std::span<const Vec3> polygo
   }
   // Ear clipping is O(m^2) (11.8 s at 16,000 corners): large polygons go to CGAL's constrained Delaunay
   // triangulation, O(m log m) (0.x s at 10^6 corners), with the same contract.
-  if (m > kEarClippingMaxCorners) return detail::triangulate_cdt(p);
+  if (m > detail::kEarClippingMaxCorners) return detail::triangulate_cdt(p);
   std::vector<int> idx(m);
   for (int k = 0; k < m; ++k) idx[k] = k;
   double scale = 0;

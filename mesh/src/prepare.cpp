@@ -237,12 +237,24 @@ void clean_faces(PolygonSoup& s, Report& report) {
     // consecutive repeats and spikes (a b c b) become loops of fewer than 3 corners and vanish.
     std::vector<std::vector<int>> loops;
     stack.clear();
+    // Large faces find a repeat through a map from vertex to its place on the stack (linear, where the
+    // scan would make a 10^6-corner face quadratic).
+    const bool large = f.vertices.size() > 32;
+    std::unordered_map<int, size_t> place;
     for (int v : f.vertices) {
-      const auto it = std::find(stack.begin(), stack.end(), v);
+      auto it = stack.end();
+      if (large) {
+        if (const auto p = place.find(v); p != place.end()) it = stack.begin() + static_cast<std::ptrdiff_t>(p->second);
+      } else {
+        it = std::find(stack.begin(), stack.end(), v);
+      }
       if (it != stack.end()) {
         loops.emplace_back(it, stack.end());
+        if (large)
+          for (auto j = it + 1; j != stack.end(); ++j) place.erase(*j);
         stack.erase(it + 1, stack.end());
       } else {
+        if (large) place.emplace(v, stack.size());
         stack.push_back(v);
       }
     }
@@ -751,6 +763,8 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
         throw InputError(where + " uses " + vertex_at(soup, v) + ", which has a non-finite coordinate");
     }
   }
+
+  check_geometric_scale(soup);  // before any work that depends on it
 
   PolygonSoup out = soup;
   if (!options.repair && options.max_edge == 0) {

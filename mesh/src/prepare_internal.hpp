@@ -25,6 +25,11 @@ std::string id_list(std::vector<int> ids, int shown = 5);
 
 std::string num(double x);
 
+// Scene sizes (bounding-box diagonal of the used vertices, m) with exact form factors and visibility.
+constexpr double kMinSceneSize = 1e-10, kMaxSceneSize = 1e12;
+// Throws InputError naming the size when it lies outside [kMinSceneSize, kMaxSceneSize] (scale_check.cpp).
+void check_geometric_scale(const PolygonSoup& s);
+
 // Refinement step (prepare_refine.cpp): splits faces in place, appends positions, counts.
 // Throws InputError before changing anything when the estimated patch count exceeds max_patches (> 0).
 void refine(PolygonSoup& soup, double max_edge, Report& report, long long max_patches = 0);

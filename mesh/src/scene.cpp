@@ -1,4 +1,5 @@
 #include "lambert/mesh/scene.hpp"
+#include "triangulate_internal.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -132,6 +133,9 @@ bool self_intersecting(const std::vector<Vec3>& poly, const Vec3& n) {
     if (std::abs(orient2(a, b, c)) <= eps && (b - a).dot(c - b) < 0) return true;  // spike
   }
   if (m == 3) return false;
+  // Large polygons: the pairwise edge test is O(m^2); CGAL's constrained triangulation (exact predicates,
+  // O(m log m)) fails exactly when edges cross or touch.
+  if (m > detail::kEarClippingMaxCorners) return detail::triangulate_cdt(q).empty();
   for (int i = 0; i < m; ++i)
     for (int j = i + 2; j < m; ++j) {
       if (i == 0 && j == m - 1) continue;  // adjacent through the wrap-around

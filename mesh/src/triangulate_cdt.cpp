@@ -39,8 +39,8 @@ std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2
     CDT::Face_handle hint;
     for (int k = 0; k < m; ++k) {
       vh[k] = cdt.insert(K::Point_2(p[k].x(), p[k].y()), hint);  // neighbours along the boundary: short walks
-      if (vh[k]->info() != 0) return {};  // a repeated point: not simple
-      vh[k]->info() = k + 1;
+      if (cdt.number_of_vertices() != size_t(k) + 1) return {};  // a repeated point: not simple
+      vh[k]->info() = k;
       hint = vh[k]->face();
     }
     for (int k = 0; k < m; ++k) cdt.insert_constraint(vh[k], vh[(k + 1) % m]);
@@ -75,7 +75,7 @@ std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2
         if (f->info() > 1) return {};  // nested loops: not a simple polygon
         continue;
       }
-      tris.push_back({f->vertex(0)->info() - 1, f->vertex(1)->info() - 1, f->vertex(2)->info() - 1});
+      tris.push_back({f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()});
     }
     // A simple polygon with m corners and no inner points has exactly m - 2 triangles.
     if (static_cast<int>(tris.size()) != m - 2) return {};

@@ -168,8 +168,13 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
       sol.channels.push_back(sol.channels[same]);
       continue;
     }
-    const VectorXd r = rho.col(c), e = Le.col(c);
-    VectorXd L = options.initial_guess.size() ? VectorXd(options.initial_guess.col(c)) : e;
+    // The system is linear: solve for Le / s with s the power of two nearest below max Le (exact scaling,
+    // no rounding), then scale back. Emission of 1e-170 or 1e160 W m^-2 sr^-1 would otherwise underflow or
+    // overflow in the squared norms of the residuals (residual NaN, "divergence").
+    const double emax = Le.col(c).maxCoeff();
+    const double scale = emax > 0 ? std::ldexp(1.0, std::ilogb(emax)) : 1.0;
+    const VectorXd r = rho.col(c), e = Le.col(c) / scale;
+    VectorXd L = options.initial_guess.size() ? VectorXd(options.initial_guess.col(c) / scale) : e;
     VectorXd FL(n);
     ChannelReport report;
     if (e.isZero(0)) {
@@ -186,6 +191,8 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
       }
       report = std::move(res.report);
       report.residual = (e + r.cwiseProduct(FL) - L).norm() / detail::residual_scale(L, e.norm());
+      L *= scale;
+      FL *= scale;
     }
     sol.converged = sol.converged && report.stop == "converged";
     negative += (L.array() < 0).count();
