@@ -1,4 +1,5 @@
 // OFF / COFF reader and writer.
+#include <algorithm>
 #include <limits>
 #include <unordered_map>
 
@@ -29,15 +30,11 @@ class OffReader {
       first = 0;
     }
     counts(first);
-    // A count cannot promise more than the file holds: a vertex line takes at least 6 bytes ("0 0 0\n"),
-    // a face line 8 ("3 0 1 2\n"). Refused before any allocation.
-    const double need = 6.0 * double(nv_) + 8.0 * double(nf_) - 1;
-    if (need > double(text.size() - lines.offset()))
-      fail(path_, counts_line_, "the counts promise " + std::to_string(nv_) + " vertices and " + std::to_string(nf_) +
-                                    " faces, at least " + detail::format_double(need) + " bytes, but the file has only " +
-                                    std::to_string(text.size() - lines.offset()) + " bytes after this line");
-
-    soup_.positions.reserve(nv_);
+    // A count cannot promise more than the file holds: a vertex line takes at least 6 bytes ("0 0 0\n"), a
+    // face line 8 ("3 0 1 2\n"); reservations are capped by that, and a count beyond it ends in "the file
+    // ends after K of N" (with the line) after reading only what is there.
+    const long long vertex_fit = static_cast<long long>(text.size() / 6), face_fit = static_cast<long long>(text.size() / 8);
+    soup_.positions.reserve(static_cast<std::size_t>(std::min(nv_, vertex_fit)));
     for (long long i = 0; i < nv_; ++i) {
       if (!next_line()) ends("vertices", i, nv_);
       if (tok_.size() < 3)
@@ -52,7 +49,7 @@ class OffReader {
       soup_.position_lines.push_back(line_);
     }
 
-    soup_.faces.reserve(nf_);
+    soup_.faces.reserve(static_cast<std::size_t>(std::min(nf_, face_fit)));
     for (long long i = 0; i < nf_; ++i) {
       if (!next_line()) ends("faces", i, nf_);
       face(i);

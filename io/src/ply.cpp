@@ -119,11 +119,11 @@ class Source {
 
   int line() const { return format_ == Format::ascii ? line_ : 0; }
 
-  // Whether n more values of type t can still be in the data (ascii: on this line; binary: in the bytes
-  // left). Checked before a list is allocated: a count cannot promise more than the file holds.
-  bool can_hold(double n, Type t) const {
-    if (format_ == Format::ascii) return n <= static_cast<double>(tok_.size() - next_tok_);
-    return n * type_size(t) <= static_cast<double>(data_.size() - pos_);
+  // How many more values of type t the data can still hold (ascii: on this line; binary: in the bytes
+  // left). Caps a list's reservation: a count cannot promise more than the file holds.
+  double capacity(Type t) const {
+    if (format_ == Format::ascii) return static_cast<double>(tok_.size() - next_tok_);
+    return static_cast<double>((data_.size() - pos_) / static_cast<std::size_t>(type_size(t)));
   }
 
  private:
@@ -214,7 +214,6 @@ class PlyReader {
   mesh::PolygonSoup run() {
     text_ = detail::read_file(path_);
     std::size_t data_start = header();
-    check_counts(text_.size() - data_start);
     Source src(path_, std::string_view(text_).substr(data_start), format_, header_lines_ + 1);
     for (const Element& e : elements_) {
       if (e.name == "vertex") vertices(src, e);
@@ -294,21 +293,16 @@ class PlyReader {
     return lines.offset();
   }
 
-  // Each element instance takes at least a fixed number of bytes (binary: its scalars and list counts;
-  // ascii: one character and one separator per value), so the header's counts cannot promise more than
-  // the data holds: refused here, before any allocation, naming the element line.
-  void check_counts(std::size_t data_bytes) const {
-    double need = 0;
-    for (const Element& e : elements_) {
-      double per = 0;
-      for (const Property& p : e.props)
-        per += format_ == Format::ascii ? 2.0 : static_cast<double>(type_size(p.list ? p.count_type : p.type));
-      need += static_cast<double>(e.count) * std::max(per, 1.0);
-      if (need > static_cast<double>(data_bytes) + 1)
-        fail(path_, e.line, "element '" + e.name + "' count " + std::to_string(e.count) +
-                                " cannot fit in the file: the data after the header has " + std::to_string(data_bytes) +
-                                " bytes, at least " + detail::format_double(need) + " needed for the counts declared up to here");
-    }
+  // A header count cannot promise more than the file holds: each element instance takes at least a fixed
+  // number of bytes (binary: its scalars and list counts; ascii: a character and a separator per value), so
+  // reservations are capped by what the data can hold; a count beyond that ends in the reader's own
+  // "the file ends" error (with line and element index) after reading only what is there.
+  long long capacity(const Element& e) const {
+    double per = 0;
+    for (const Property& p : e.props)
+      per += format_ == Format::ascii ? 2.0 : static_cast<double>(type_size(p.list ? p.count_type : p.type));
+    const double fit = static_cast<double>(text_.size()) / std::max(per, 1.0);
+    return static_cast<long long>(std::min(static_cast<double>(e.count), fit));
   }
 
   void check_roles() {
@@ -368,14 +362,12 @@ class PlyReader {
   void skip_list(Source& src, const Property& p) {
     double n = src.value(p.count_type, p, false);
     if (n < 0) src.error("list property '" + p.name + "' has negative length " + detail::format_double(n));
-    if (!src.can_hold(n, p.type))
-      src.error("list property '" + p.name + "' has length " + detail::format_double(n) + ", more values than the rest of the " +
-                "data holds");
+
     for (long long i = 0; i < static_cast<long long>(n); ++i) src.value(p.type, p, false);
   }
 
   void vertices(Source& src, const Element& e) {
-    soup_.positions.reserve(e.count);
+    soup_.positions.reserve(static_cast<std::size_t>(capacity(e)));
     for (long long k = 0; k < e.count; ++k) {
       src.begin(e, k);
       Vec3 p = Vec3::Zero();
@@ -396,7 +388,7 @@ class PlyReader {
 
   void faces(Source& src, const Element& e) {
     const long long nv = vertex_count();
-    soup_.faces.reserve(e.count);
+    soup_.faces.reserve(static_cast<std::size_t>(capacity(e)));
     for (long long k = 0; k < e.count; ++k) {
       src.begin(e, k);
       mesh::SoupFace f;
@@ -408,10 +400,9 @@ class PlyReader {
         if (static_cast<int>(pi) == indices_prop_) {
           double n = src.value(prop.count_type, prop, true);
           if (n < 3) src.error("face has " + detail::format_double(n) + " vertices; expected at least 3");
-          if (!src.can_hold(n, prop.type))
-            src.error("face has " + detail::format_double(n) + " vertices, more values than the rest of the data holds");
           f.vertices.clear();
-          f.vertices.reserve(static_cast<std::size_t>(n));
+          // Capped by what the data can still hold (a list count of 4e9 in a small file).
+          f.vertices.reserve(static_cast<std::size_t>(std::min(n, src.capacity(prop.type))));
           for (long long i = 0; i < static_cast<long long>(n); ++i) {
             double v = src.value(prop.type, prop, true);
             if (v < 0 || v >= static_cast<double>(nv))

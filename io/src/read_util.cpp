@@ -39,7 +39,7 @@ bool try_read_file(const std::string& path, std::string& out, std::string& error
     return false;
   }
   if (!S_ISREG(st.st_mode)) {
-    error = S_ISDIR(st.st_mode)    ? "it is a directory"
+    error = S_ISDIR(st.st_mode)    ? std::strerror(EISDIR)
             : S_ISFIFO(st.st_mode) ? "it is a FIFO (named pipe); expected a regular file"
             : S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode) ? "it is a device; expected a regular file"
                                                           : "not a regular file";
