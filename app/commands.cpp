@@ -13,9 +13,9 @@
 #include "lambert/io/vtk.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/scene.hpp"
-#include "lambert/solver/adaptive.hpp"
+#include "lambert/refine/adaptive.hpp"
 #include "lambert/solver/solve.hpp"
-#include "lambert/solver/verify.hpp"
+#include "lambert/verify/verify.hpp"
 #include "progress.hpp"
 
 #ifndef LAMBERT_VERSION
@@ -313,13 +313,13 @@ int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseT
   mesh::Report prep_report;
   soup = mesh::prepare(soup, prepare_options(o), prep_report);
   timer.start("adaptive");
-  solver::AdaptiveOptions ao;
+  refine::AdaptiveOptions ao;
   ao.max_patches = o.adaptive_budget;
   ao.tolerance = o.adaptive_tolerance;
   ao.max_rounds = o.adaptive_rounds;
   ao.ff = ff_options(o, nullptr);
   ao.solve = so;
-  solver::AdaptiveResult r = solver::solve_adaptive(soup, ao);
+  refine::AdaptiveResult r = refine::solve_adaptive(soup, ao);
   timer.stop();
   // The final scene's report covers validation; put the preparation's counts and warnings first.
   for (const auto& [k, v] : prep_report.counts) r.scene.report.counts[k] += v;
@@ -389,22 +389,22 @@ int run_solve(const CommonOptions& o) {
 }
 
 int run_verify_sphere(const VerifyOptions& v, const CommonOptions&) {
-  solver::SphereCase c;
+  verify::SphereCase c;
   if (v.subdivisions >= 0) c.subdivisions = v.subdivisions;
   if (v.rho >= 0) c.rho = v.rho;
   c.emission = v.emission;
-  c.method = solver::parse_method(v.method);
-  const solver::VerifyReport r = solver::verify_sphere(c);
+  c.solve.method = solver::parse_method(v.method);
+  const verify::VerifyReport r = verify::verify_sphere(c);
   std::fputs(r.table.c_str(), stdout);
   return r.passed ? 0 : 4;
 }
 
 int run_verify_furnace(const VerifyOptions& v, const CommonOptions&) {
-  solver::FurnaceCase c;
+  verify::FurnaceCase c;
   if (v.divisions > 0) c.divisions = v.divisions;
   if (v.rho >= 0) c.rho = v.rho;
-  c.method = solver::parse_method(v.method);
-  const solver::VerifyReport r = solver::verify_furnace(c);
+  c.solve.method = solver::parse_method(v.method);
+  const verify::VerifyReport r = verify::verify_furnace(c);
   std::fputs(r.table.c_str(), stdout);
   return r.passed ? 0 : 4;
 }

@@ -12,9 +12,10 @@
 #include "lambert/mesh/geometry.hpp"
 #include "lambert/mesh/shapes.hpp"
 #include "lambert/solver/solve.hpp"
-#include "lambert/solver/verify.hpp"
+#include "lambert/verify/verify.hpp"
 
 namespace lambert::solver {
+using namespace lambert::verify;
 namespace {
 
 struct Enclosure {
