@@ -185,7 +185,9 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
         ++res.report.matvecs;
       }
       report = std::move(res.report);
-      report.residual = (e + r.cwiseProduct(FL) - L).norm() / detail::residual_scale(L, e.norm());
+      const VectorXd resid = e + r.cwiseProduct(FL) - L;
+      report.residual = resid.norm() / detail::residual_scale(L, e.norm());
+      report.residual_max = resid.cwiseAbs().maxCoeff() / std::max(L.cwiseAbs().maxCoeff(), e.cwiseAbs().maxCoeff());
     }
     sol.converged = sol.converged && report.stop == "converged";
     negative += (L.array() < 0).count();

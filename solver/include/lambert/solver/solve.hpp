@@ -57,6 +57,9 @@ struct ChannelReport {
   int iterations = 0;   // sweeps or Krylov iterations
   int matvecs = 0;      // products y = F x (Gauss-Seidel: start and convergence checks; sweeps use row_dot)
   double residual = 0;  // relative residual of the returned L, recomputed from it (as in Options::tolerance)
+  // The same residual in the max norm: max_i |Le + rho F L - L|_i / max(max|L|, max|Le|); the solve's part of
+  // the error bound of docs/physics.md §5.
+  double residual_max = 0;
   std::string stop;     // "converged" | "max_iterations" | "stagnation" | "divergence"
   // Relative residuals: [0] of the start, then one per iteration (GMRES: per restart cycle). Exact for
   // Jacobi (entry k is that of iterate k) and GMRES; the running residual (each row at its update) for
