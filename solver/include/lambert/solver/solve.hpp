@@ -89,7 +89,7 @@ struct Solution {
 // recomputing form factors. Thread-safe for concurrent solve() calls if F's methods are.
 class Solver {
  public:
-  // area: m^2 per patch, > 0, size F->size(). Throws InputError otherwise.
+  // area: m^2 per patch, > 0, size F->size() (preconditions: InternalError via LAMBERT_CHECK otherwise).
   Solver(std::shared_ptr<const formfactor::TransportOperator> F, std::vector<double> area);
 
   // rho: patches x 3 in [0, 1); Le: patches x 3, >= 0 (W m^-2 sr^-1); all finite.
