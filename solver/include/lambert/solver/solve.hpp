@@ -24,9 +24,9 @@ enum class Method {
 Method parse_method(const std::string& name);
 std::string to_string(Method method);
 
-// What Auto resolves to, from the largest reflectance and the patch count (measured in
-// docs/benchmarks_solver.md: GMRES needs fewer products F x than Jacobi at every rho > 0, e.g. 12 vs 25
-// at 0.5 and 20 vs 11,571 at 0.999 on a 3000-patch room; Gauss-Seidel sweeps are sequential):
+// What Auto resolves to, from the largest reflectance and the patch count (GMRES needs fewer products F x
+// than Jacobi at every rho > 0, increasingly so as rho -> 1: docs/benchmarks_solver.md; Gauss-Seidel sweeps
+// are sequential):
 //   rho_max == 0                                   -> Jacobi (L = Le, one product for the residual)
 //   (restart + 1) * patches * 8 bytes > 2 GiB      -> BiCGSTAB (7 vectors, for huge matrix-free operators)
 //   otherwise                                      -> GMRES

@@ -27,8 +27,8 @@ using solver::Method;
 // 1/(4 pi R^2): L_i = Le_i + rho_i Ebar / (1 - rhobar), Ebar and rhobar the area means over the
 // polyhedron. The polyhedron only converges to it, as O(h) in the edge length h = 1.0515 R / 2^K: a flat
 // face's normal is radial at its circumcentre, not its centroid, and the cosines of the kernel are first
-// order in that O(h) tilt. Measured max relative error / (h/R) <= 0.058 for K = 1..4, rho = 0..0.999
-// (docs/benchmarks_solver.md); pass tolerance 0.2 h/R.
+// order in that O(h) tilt; pass tolerance 0.2 h/R, several times the measured error
+// (docs/benchmarks_solver.md).
 struct SphereCase {
   int subdivisions = 3;       // K in [0, 6]: 1280 patches by default
   double radius = 1;          // m
@@ -50,10 +50,10 @@ struct SphereCase {
 // White furnace: closed unit room [0,1]^3 (divisions^2 quads per face, inward) with the floating block
 // [0.35, 0.65]^3 (block_divisions^2 quads per face, outward) that occludes. Uniform Le = E0, rho: exact
 // answer E0 / (1 - rho) everywhere. Row-sum errors delta (from ray-estimated visibility) are amplified:
-// the error is at most rho max|delta| / (1 - rho max(1 + delta)), printed as "bound"; as rho -> 1 it
-// approaches rho mean(delta) / (1 - rho). Pass tolerance 5e-3, fixed: what ray visibility with 256 rays
-// per pair achieves up to rho = 0.99 on this room (docs/benchmarks.md); at rho = 0.999 ray visibility is
-// not accurate enough and the case fails, as it should.
+// the error is at most rho max|delta| / (1 - rho max(1 + delta)), printed as "bound". Pass tolerance 5e-3,
+// fixed, from what ray visibility with 256 rays per pair achieves on this room up to rho = 0.99
+// (docs/benchmarks.md); at rho = 0.999 ray visibility is not accurate enough and the case fails, as it
+// should.
 struct FurnaceCase {
   int divisions = 6;          // >= 1: 216 room quads
   int block_divisions = 3;    // >= 1: 54 block quads
