@@ -18,8 +18,18 @@ namespace detail {
 
 void Assembler::check_options() {
   const int n = g_.size();
-  if (!(o_.tolerance > 0) || !std::isfinite(o_.tolerance))
-    throw InputError("form factors: tolerance must be a positive number (got " + std::to_string(o_.tolerance) + ")");
+  if (!(o_.tolerance >= 0) || !std::isfinite(o_.tolerance))
+    throw InputError("form factors: tolerance must be a positive number, or 0 for the automatic one (got " +
+                     std::to_string(o_.tolerance) + ")");
+  if (!(o_.max_reflectance < 1))
+    throw InputError("form factors: max_reflectance must be < 1 (got " + std::to_string(o_.max_reflectance) + ")");
+  tol_ = o_.tolerance > 0 ? o_.tolerance : default_tolerance(o_.max_reflectance);
+  st_.tolerance = tol_;
+  if (!o_.fault_method.empty()) {
+    for (int m = 0; m < kMethodCount; ++m)
+      if (o_.fault_method == kMethodNames[m]) fault_method_ = m;
+    if (fault_method_ < 0) throw InputError("form factors: unknown fault_method '" + o_.fault_method + "'");
+  }
   if (o_.rule == Rule::Gauss && (o_.order < 1 || o_.order > 8))
     throw InputError("form factors: Gauss order must be in 1..8 (got " + std::to_string(o_.order) + ")");
   if (o_.reuse) {
@@ -92,6 +102,8 @@ DenseMatrixOperator Assembler::run() {
   tbb::enumerable_thread_specific<Counters> counters([&] {
     Counters c;
     c.row_sum.assign(n, 0.0);
+    c.row_err.assign(n, 0.0);
+    c.row_vis_var.assign(n, 0.0);
     return c;
   });
   tbb::enumerable_thread_specific<TileBuffers> buffers;
@@ -129,12 +141,19 @@ DenseMatrixOperator Assembler::run() {
   std::vector<Counters*> all;
   for (Counters& c : counters) all.push_back(&c);
   collect_stats(all);
+  if (o_.rule == Rule::Adaptive) check_reciprocity(all);
   st_.seconds["stats"] = seconds_since(t_stats);
   return DenseMatrixOperator(std::move(F));
 }
 
 }  // namespace detail
 
+
+double default_tolerance(double max_reflectance) {
+  // tolerance x rho / (1 - rho), the row-sum error's amplification, held at its value for rho = 0.9 (9e-8).
+  const double rho = max_reflectance < 0 ? 0.9 : std::min(max_reflectance, 0.9999);
+  return rho <= 0.9 ? 1e-8 : 1e-8 * 9 * (1 - rho) / rho;
+}
 
 std::string to_string(Rule rule, int order) {
   switch (rule) {

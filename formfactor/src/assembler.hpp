@@ -21,15 +21,26 @@ inline double seconds_since(Clock::time_point t0) { return std::chrono::duration
 
 constexpr int kBlock = 64;  // tile edge: 64 x 64 pairs, both matrix blocks stay in L2 while written
 
+constexpr std::uint8_t kNoMethod = 255, kReusedMethod = 254;  // tile method slots: not computed / reused
+
+// A pair offered to the independent reciprocity check: s the source (smaller patch), F_st unoccluded as
+// assembled, err its error bound.
+struct RecipCandidate {
+  std::uint64_t key;
+  int s, t, method;
+  double F, err;
+  bool operator<(const RecipCandidate& o) const { return key < o.key; }
+};
+
 // Per-thread counters, summed into Stats at the end (stats.cpp).
 struct Counters {
   long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0, reused = 0, fixed = 0;
   long long no_visible_sample = 0;
   double tile_seconds = 0, visibility_seconds = 0;  // thread time in tiles, and in their visibility step
   std::array<long long, kMethodCount> by_method{};
-  long long outside = 0;
-  double recip = 0;
-  std::vector<double> row_sum;
+  long long outside = 0, roundoff = 0;
+  std::vector<double> row_sum, row_err, row_vis_var;  // per patch: row sum, its error bound, visibility variance
+  std::array<std::vector<RecipCandidate>, kMethodCount> recip_candidates;  // max-heaps by key, per method
 };
 
 struct TileBuffers {
@@ -37,7 +48,10 @@ struct TileBuffers {
   std::vector<int> ps, pt, pslot, ss, st, pair_i, pair_j, cs, ct, cslot;
   std::vector<double> lx, ly, lz, lw;  // outer-rule lanes: point and weight
   std::vector<std::uint8_t> pair_swap;
-  std::vector<double> out, val, row, rowj;
+  std::vector<double> out, val, row, rowj, erow, erowj;
+  std::vector<double> err;          // kBlock x kBlock: error bound of F_ij in the tile
+  std::vector<std::uint8_t> meth;   // kBlock x kBlock: method of F_ij (Method, kNoMethod, kReusedMethod)
+  std::vector<std::int8_t> run_code;  // classify's pair codes for one run
   std::vector<int> rest_j;
   SampleBuffers ray;
   int blocker = -1;  // the occluder that blocked the last shaft tested (OccluderTree::may_block's cache)
@@ -54,6 +68,7 @@ class Assembler {
   bool reused(int i, int j) const { return !old_.empty() && old_[i] >= 0 && old_[j] >= 0; }
   void check_options();
   void collect_stats(const std::vector<Counters*>& counters);
+  void check_reciprocity(const std::vector<Counters*>& counters);
 
   const mesh::PatchGeometry& g_;
   const Options& o_;
@@ -63,6 +78,8 @@ class Assembler {
   std::shared_ptr<const Visibility> caster_;
   OccluderTree tree_;
   bool occlusion_ = false;
+  double tol_ = 0;         // the tolerance used (Options::tolerance or the automatic one)
+  int fault_method_ = -1;  // Options::fault_method as a Method, or -1
   int rays_ = 1;  // rays per pair (times m^4 for pairs carrying a large share of a row)
   std::vector<int> old_;                        // Options::reuse->previous_index, or empty
   std::vector<int> rule_off_;                   // Rule::Gauss: points of patch p in [rule_off_[p], rule_off_[p+1])

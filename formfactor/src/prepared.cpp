@@ -26,7 +26,7 @@ Prepared::Prepared(const mesh::PatchGeometry& g) : P(prepare(g)) {
   soa.nz = fill([&](int p) { return P.nrm[p].z(); });
   soa.off = fill([&](int p) { return P.offset[p]; });
   soa.area = fill([&](int p) { return P.area[p]; });
-  soa.rho = fill([&](int p) { return P.rho[p]; });
+  soa.radius = fill([&](int p) { return P.radius[p]; });
   for (int c = 0; c < 4; ++c) {
     auto corner = [&, c](int p, int axis) {
       const auto poly = g.polygon(p);

@@ -51,10 +51,14 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   const BatchKernels& K = batch_kernels();
   const int n = pr.P.n;
   const int i0 = bi * kBlock, i1 = std::min(n, i0 + kBlock), j0 = bj * kBlock, j1 = std::min(n, j0 + kBlock);
-  const double tol = o_.tolerance;
+  const double tol = tol_;
   const double* area = pr.P.area.data();
   auto& F = *F_;
   b.code.resize(kBlock + 16);
+  b.run_code.resize(kBlock + 16);
+  b.err.assign(size_t(kBlock) * kBlock, 0.0);
+  b.meth.assign(size_t(kBlock) * kBlock, kNoMethod);
+  auto slot = [&](int i, int j) { return size_t(i - i0) * kBlock + size_t(j - j0); };
   b.lx.clear(), b.ly.clear(), b.lz.clear(), b.lw.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear();
   b.ss.clear(), b.st.clear();
   b.cs.clear(), b.ct.clear(), b.cslot.clear();
@@ -64,7 +68,13 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   // 1. Classification, with tiers 0/1 evaluated in the same pass straight into row i of the matrix (F_ij),
   // over runs of pairs not copied from a previous assembly.
   auto classify_run = [&](int i, int js, int je) {
-    const int nrest = K.classify(s, i, js, je, tol, &F(i, js), b.code.data(), b.rest_j.data(), counts);
+    const int nrest = K.classify(s, i, js, je, tol, &F(i, js), &b.err[slot(i, js)], b.run_code.data(), b.code.data(),
+                                 b.rest_j.data(), counts);
+    for (int j = js; j < je; ++j) {
+      const int code = b.run_code[j - js];
+      b.meth[slot(i, j)] = std::uint8_t(code == kCodeCulled ? kCulled : code == kCodeSlow ? kNoMethod
+                                                                                        : tier_method((code & 15) - 1));
+    }
     for (int r = 0; r < nrest; ++r) {
       const int code = b.code[r], j = b.rest_j[r];
       if (code == kCodeSlow) {
@@ -145,6 +155,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     for (int j = js; j < j1;) {
       if (old_[j] >= 0) {
         F(i, j) = (*o_.reuse->previous).matrix()(old_[i], old_[j]);
+        b.meth[slot(i, j)] = kReusedMethod;
         ++c.reused;
         ++j;
         continue;
@@ -186,6 +197,41 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     if (e.method == kCulled) ++c.culled;
     if (e.error > tol) ++c.over_tolerance;
     F(i, j) = swap ? e.F * area[j] / area[i] : e.F;
+    b.err[slot(i, j)] = swap ? e.error * area[j] / area[i] : e.error;
+    b.meth[slot(i, j)] = std::uint8_t(e.method);
+  }
+  // Fault injection (tests of the checks only): one method's results perturbed, both directions.
+  if (fault_method_ >= 0)
+    for (int i = i0; i < i1; ++i)
+      for (int j = bi == bj ? i + 1 : j0; j < j1; ++j)
+        if (b.meth[slot(i, j)] == fault_method_) F(i, j) *= 1 + o_.fault_relative;
+  // Reciprocity-check candidates: per method present in the tile, one pair (the first met from a seeded
+  // start), keyed by a hash of (tile, method); the smallest keys over all tiles are checked (stats.cpp).
+  if (o_.reciprocity_samples > 0 && o_.rule == Rule::Adaptive) {
+    const std::uint64_t tile_id = std::uint64_t(bi) * 1000003ull + std::uint64_t(bj);
+    const int cells = (i1 - i0) * kBlock, start = int(mix(tile_id) % std::uint64_t(cells));
+    std::array<bool, kMethodCount> seen{};
+    seen[kCulled] = true;
+    for (int k = 0; k < cells; ++k) {
+      const int cell = (start + k) % cells, i = i0 + cell / kBlock, j = j0 + cell % kBlock;
+      if (j >= j1 || (bi == bj && j <= i)) continue;
+      const int m = b.meth[slot(i, j)];
+      if (m >= kMethodCount || seen[m]) continue;
+      seen[m] = true;
+      const bool swap = area[j] < area[i];
+      const int src = swap ? j : i, tgt = swap ? i : j;
+      RecipCandidate rc{mix(tile_id * 16 + std::uint64_t(m)), src, tgt, m, F(i, j) * (swap ? area[i] / area[j] : 1.0),
+                        b.err[slot(i, j)] * (swap ? area[i] / area[j] : 1.0)};
+      auto& heap = c.recip_candidates[m];
+      if (int(heap.size()) < o_.reciprocity_samples) {
+        heap.push_back(rc);
+        std::push_heap(heap.begin(), heap.end());
+      } else if (rc.key < heap.front().key) {
+        std::pop_heap(heap.begin(), heap.end());
+        heap.back() = rc;
+        std::push_heap(heap.begin(), heap.end());
+      }
+    }
   }
   // 4. Visibility: only for pairs whose segments may meet an occluder. Shafts are tested hierarchically:
   // the whole tile, then 8 x 8 sub-tiles, then single pairs. The visible fraction is symmetric.
@@ -237,6 +283,9 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                     visible_ratio(g_, pr.P, *caster_, swap ? j : i, swap ? i : j, rays_ * m * m * m * m, b.ray);
                 c.rays += v.rays;
                 c.no_visible_sample += v.no_sample;
+                const double sigma = F(i, j) * v.sigma, ratio = area[i] / area[j];
+                c.row_vis_var[i] += sigma * sigma;
+                c.row_vis_var[j] += sigma * sigma * ratio * ratio;
                 F(i, j) *= v.ratio;
                 continue;
               }
@@ -250,9 +299,18 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   // the row sums and checks of what is stored.
   b.row.assign(size_t(kBlock), 0.0);
   b.rowj.assign(size_t(kBlock) + 8, 0.0);
-  K.transpose(area, F.data(), F.cols(), i0, i1, j0, j1, bi == bj, b.row.data(), b.rowj.data(), &c.outside, &c.recip);
-  for (int i = i0; i < i1; ++i) c.row_sum[i] += b.row[i - i0];
-  for (int j = j0; j < j1; ++j) c.row_sum[j] += b.rowj[j - j0];
+  b.erow.assign(size_t(kBlock), 0.0);
+  b.erowj.assign(size_t(kBlock) + 8, 0.0);
+  K.transpose(area, F.data(), F.cols(), i0, i1, j0, j1, bi == bj, b.err.data(), kBlock, b.row.data(), b.rowj.data(),
+              b.erow.data(), b.erowj.data(), &c.outside, &c.roundoff);
+  for (int i = i0; i < i1; ++i) {
+    c.row_sum[i] += b.row[i - i0];
+    c.row_err[i] += b.erow[i - i0];
+  }
+  for (int j = j0; j < j1; ++j) {
+    c.row_sum[j] += b.rowj[j - j0];
+    c.row_err[j] += b.erowj[j - j0];
+  }
 }
 
 }  // namespace lambert::formfactor::detail
