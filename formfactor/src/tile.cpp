@@ -205,22 +205,23 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     for (int i = i0; i < i1; ++i)
       for (int j = bi == bj ? i + 1 : j0; j < j1; ++j)
         if (b.meth[slot(i, j)] == fault_method_) F(i, j) *= 1 + o_.fault_relative;
-  // Reciprocity-check candidates: per method present in the tile, one pair (the first met from a seeded
-  // start), keyed by a hash of (tile, method); the smallest keys over all tiles are checked (stats.cpp).
+  // Reciprocity-check candidates: per method present in the tile, the first kPerTile pairs met from a seeded
+  // start, keyed by a hash of (tile, method, rank); the smallest keys over all tiles are checked (stats.cpp).
   if (o_.reciprocity_samples > 0 && o_.rule == Rule::Adaptive) {
     const std::uint64_t tile_id = std::uint64_t(bi) * 1000003ull + std::uint64_t(bj);
     const int cells = (i1 - i0) * kBlock, start = int(mix(tile_id) % std::uint64_t(cells));
-    std::array<bool, kMethodCount> seen{};
-    seen[kCulled] = true;
+    constexpr int kPerTile = 4;  // candidates per method and tile (small scenes have few tiles)
+    std::array<int, kMethodCount> seen{};
+    seen[kCulled] = kPerTile;
     for (int k = 0; k < cells; ++k) {
       const int cell = (start + k) % cells, i = i0 + cell / kBlock, j = j0 + cell % kBlock;
       if (j >= j1 || (bi == bj && j <= i)) continue;
       const int m = b.meth[slot(i, j)];
-      if (m >= kMethodCount || seen[m]) continue;
-      seen[m] = true;
+      if (m >= kMethodCount || seen[m] >= kPerTile) continue;
+      const std::uint64_t key = mix((tile_id * 16 + std::uint64_t(m)) * kPerTile + std::uint64_t(seen[m]++));
       const bool swap = area[j] < area[i];
       const int src = swap ? j : i, tgt = swap ? i : j;
-      RecipCandidate rc{mix(tile_id * 16 + std::uint64_t(m)), src, tgt, m, F(i, j) * (swap ? area[i] / area[j] : 1.0),
+      RecipCandidate rc{key, src, tgt, m, F(i, j) * (swap ? area[i] / area[j] : 1.0),
                         b.err[slot(i, j)] * (swap ? area[i] / area[j] : 1.0)};
       auto& heap = c.recip_candidates[m];
       if (int(heap.size()) < o_.reciprocity_samples) {
