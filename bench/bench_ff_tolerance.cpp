@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
   }
   if (tols.empty()) tols = {1e-8, 0};
   std::printf("scene,patches,tolerance,ff_seconds,ff_cpu_seconds,row_sum_dev_max,row_error_bound_max,err_rho0.9,err_rho0.99,err_rho0.999,"
-              "pairs_by_method\n");
+              "recip_pairs,recip_bound_ratio,recip_worst,recip_residual,pairs_by_method\n");
   std::stringstream list(scenes);
   std::string name;
   while (std::getline(list, name, ',')) {
@@ -108,8 +108,9 @@ int main(int argc, char** argv) {
       }
       std::string methods;
       for (const auto& [m, c] : st.pairs_by_method) methods += m + "=" + std::to_string(c) + " ";
-      std::printf("%s,%d,%.3g,%.3f,%.3f,%.3g,%.3g,%.3g,%.3g,%.3g,%s\n", s.name.c_str(), s.g.size(), st.tolerance,
-                  st.seconds["form_factors"], cpu, dev, st.row_error_bound_max, err[0], err[1], err[2], methods.c_str());
+      std::printf("%s,%d,%.3g,%.3f,%.3f,%.3g,%.3g,%.3g,%.3g,%.3g,%lld,%.3g,%s,%.3g,%s\n", s.name.c_str(), s.g.size(), st.tolerance,
+                  st.seconds["form_factors"], cpu, dev, st.row_error_bound_max, err[0], err[1], err[2], st.reciprocity_check_pairs, st.reciprocity_bound_ratio,
+                  st.reciprocity_worst_method.c_str(), st.reciprocity_residual, methods.c_str());
       std::fflush(stdout);
     }
   }
