@@ -48,7 +48,7 @@ void gauss_legendre01(int m, std::vector<double>& x, std::vector<double>& w);
 struct PatchData {
   int n = 0;
   std::vector<Vec3> c, nrm;          // centroid, unit normal
-  std::vector<double> area, rho;     // area, circumradius about the centroid
+  std::vector<double> area, radius;  // area, circumradius about the centroid
   std::vector<double> offset;        // n . c
   std::vector<double> eps;           // plane classification tolerance (relative to scene size)
   std::vector<std::array<double, 6>> M;  // second-moment tensor / area about c: xx yy zz xy xz yz
@@ -92,6 +92,14 @@ enum Method {
 extern const char* const kMethodNames[kMethodCount];
 int tier_method(int t);
 PairEval pair_scalar(const PatchData& P, int src, int tgt, double tol);
+
+// A_t F_ts (m^2) integrated from t's side, independently of the tiers: mutual clipping, then the adaptive
+// double contour integral with t's edges outer, to an absolute error tol * A_s on A_t F_ts. For the
+// reciprocity check (A_s F_st should equal it).
+struct ReverseIntegral {
+  double AF = 0, error = 0;
+};
+ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol);
 
 // Signed distances of polygon corners to a plane: returns (min, max).
 std::array<double, 2> plane_range(std::span<const Vec3> poly, const Vec3& n, double offset);
