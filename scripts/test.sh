@@ -5,3 +5,6 @@ cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 bash scripts/build.sh
 ctest --test-dir build --output-on-failure -j"$(nproc)" --timeout 600
+# ASan + UBSan build of the readers, preparation and output transaction, with the issue-15 reproducers and a
+# short fuzz run (docs/reliability.md). LAMBERT_SKIP_SANITIZE=1 skips it.
+if [ "${LAMBERT_SKIP_SANITIZE:-0}" != 1 ]; then bash scripts/sanitize.sh; fi
