@@ -426,3 +426,16 @@ TEST_F(Hostile, SceneSizesOutsideTheExactRangeAreRefused) {
 }
 
 }  // namespace
+
+namespace {
+
+// Found by the fuzzer (tests/fuzz): a pentagon whose corner lies on another edge crashed --max-edge
+// refinement (a constrained-triangulation vertex without an index). It is now rejected with its line.
+TEST_F(Hostile, SelfTouchingPolygonIsRejectedNotCrashedWhenRefining) {
+  put("touch.obj", slurp(fs::path(LAMBERT_SOURCE_DIR) / "tests/fuzz/corpus/regressions/obj_self_touching_polygon_refine_crash.obj"));
+  const CliRun r = run("info touch.obj --max-edge 0.5", 30);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("touch.obj:"), std::string::npos) << r.output;
+}
+
+}  // namespace

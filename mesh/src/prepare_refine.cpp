@@ -65,13 +65,15 @@ class Bisection {
     long splits = 0;
     for (int t = 0; t < static_cast<int>(tris_.size()); ++t) {
       while (len2(tris_[t], longest(t)) > limit2) {
-        if (++splits > max_splits) return false;
+        if (broken_ || ++splits > max_splits) return false;
         // Walk to the terminal edge: the longest edge of both triangles sharing it.
         int cur = t;
         for (;;) {
           const int k = longest(cur);
           const int a = tris_[cur][k], b = tris_[cur][(k + 1) % 3];
-          const auto& side = edges_.at(edge_key(a, b));
+          const auto found = edges_.find(edge_key(a, b));
+          if (found == edges_.end()) return false;
+          const auto& side = found->second;
           const int nb = side[0] == cur ? side[1] : side[0];
           if (nb < 0) return false;
           const int kn = longest(nb);
@@ -83,7 +85,7 @@ class Bisection {
         }
       }
     }
-    return true;
+    return !broken_;
   }
 
  private:
@@ -105,12 +107,19 @@ class Bisection {
   void link(int t) {
     for (int k = 0; k < 3; ++k) {
       auto [it, fresh] = edges_.try_emplace(edge_key(tris_[t][k], tris_[t][(k + 1) % 3]), std::array<int, 2>{-1, -1});
+      // A third triangle on an edge: not a manifold triangulation (a degenerate, self-touching input
+      // polygon found by fuzzing); refinement gives up on this face instead of corrupting memory.
+      if (it->second[0] >= 0 && it->second[1] >= 0) broken_ = true;
       (it->second[0] < 0 ? it->second[0] : it->second[1]) = t;
     }
   }
   void unlink(int t) {
     for (int k = 0; k < 3; ++k) {
       const auto it = edges_.find(edge_key(tris_[t][k], tris_[t][(k + 1) % 3]));
+      if (it == edges_.end()) {
+        broken_ = true;
+        continue;
+      }
       auto& side = it->second;
       if (side[0] == t) side[0] = side[1];
       side[1] = -1;
@@ -127,7 +136,11 @@ class Bisection {
     for (int t : {t1, t2}) {
       const auto tri = tris_[t];
       int k = 0;
-      while (edge_key(tri[k], tri[(k + 1) % 3]) != edge_key(a, b)) ++k;
+      while (k < 3 && edge_key(tri[k], tri[(k + 1) % 3]) != edge_key(a, b)) ++k;
+      if (k == 3) {
+        broken_ = true;
+        return;
+      }
       const int p = tri[k], q = tri[(k + 1) % 3], r = tri[(k + 2) % 3];
       tris_[t] = {p, m, r};
       tris_.push_back({m, q, r});
@@ -138,6 +151,7 @@ class Bisection {
 
   std::vector<Vec3>& pts_;
   std::vector<std::array<int, 3>>& tris_;
+  bool broken_ = false;
   std::unordered_map<std::uint64_t, std::array<int, 2>> edges_;
 };
 
@@ -472,6 +486,14 @@ class Refiner {
     }
     for (int i = 0; i < nb; ++i) cdt.insert_constraint(vh[i], vh[(i + 1) % nb]);
     if (cdt.number_of_vertices() != static_cast<size_t>(nb) + lattice.size()) return false;
+    // Every vertex must be one inserted above (a self-touching boundary can merge one point and add an
+    // intersection point, keeping the count): its index in range and its point the one inserted there.
+    for (auto w : cdt.finite_vertex_handles()) {
+      const int i = w->info();
+      if (i < 0 || i >= nb + static_cast<int>(lattice.size())) return false;
+      const Eigen::Vector2d& at = i < nb ? q[i] : lattice[size_t(i - nb)];
+      if (w->point() != K::Point_2(at.x(), at.y())) return false;
+    }
     // Inside = odd number of constraints crossed from the infinite face.
     for (auto f : cdt.all_face_handles()) f->info() = -1;
     std::deque<std::pair<CDT::Face_handle, int>> border{{cdt.infinite_face(), 0}};
