@@ -7,8 +7,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 launcher=()
 if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
-cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLAMBERT_BUILD_BENCH=OFF "${launcher[@]}" \
-  -DCMAKE_CXX_FLAGS="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer" \
+cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=None -DLAMBERT_BUILD_BENCH=OFF "${launcher[@]}" \
+  -DCMAKE_CXX_FLAGS="-O1 -g0 -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer" \
   -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
 cmake --build build-asan -j"$(nproc)" --target sanitize_tests fuzz_readers
 export ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:abort_on_error=0
