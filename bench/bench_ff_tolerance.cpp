@@ -79,7 +79,8 @@ int main(int argc, char** argv) {
   }
   if (tols.empty()) tols = {1e-8, 0};
   std::printf("scene,patches,tolerance,ff_seconds,ff_cpu_seconds,row_sum_dev_max,row_error_bound_max,err_rho0.9,err_rho0.99,err_rho0.999,"
-              "recip_pairs,recip_bound_ratio,recip_worst,recip_residual,pairs_by_method\n");
+              "recip_pairs,recip_bound_ratio,recip_worst,recip_residual,entries_roundoff,entries_outside_unit,"
+              "pairs_no_visible_sample,pairs_over_tolerance,row_visibility_sigma_max,pairs_by_method\n");
   std::stringstream list(scenes);
   std::string name;
   while (std::getline(list, name, ',')) {
@@ -108,9 +109,11 @@ int main(int argc, char** argv) {
       }
       std::string methods;
       for (const auto& [m, c] : st.pairs_by_method) methods += m + "=" + std::to_string(c) + " ";
-      std::printf("%s,%d,%.3g,%.3f,%.3f,%.3g,%.3g,%.3g,%.3g,%.3g,%lld,%.3g,%s,%.3g,%s\n", s.name.c_str(), s.g.size(), st.tolerance,
+      std::printf("%s,%d,%.3g,%.3f,%.3f,%.3g,%.3g,%.3g,%.3g,%.3g,%lld,%.3g,%s,%.3g,%lld,%lld,%lld,%lld,%.3g,%s\n", s.name.c_str(), s.g.size(), st.tolerance,
                   st.seconds["form_factors"], cpu, dev, st.row_error_bound_max, err[0], err[1], err[2], st.reciprocity_check_pairs, st.reciprocity_bound_ratio,
-                  st.reciprocity_worst_method.c_str(), st.reciprocity_residual, methods.c_str());
+                  st.reciprocity_worst_method.c_str(), st.reciprocity_residual, st.entries_roundoff,
+                  st.entries_outside_unit, st.pairs_no_visible_sample, st.pairs_over_tolerance, st.row_visibility_sigma_max,
+                  methods.c_str());
       std::fflush(stdout);
     }
   }
