@@ -91,8 +91,13 @@ struct Options {
 double default_tolerance(double max_reflectance);
 
 struct Stats {
+  // What the assembly used (Options, resolved): the rule's name (to_string), tolerance (Options::tolerance
+  // or the automatic one), visibility, rays.
+  std::string rule = "adaptive";
+  double tolerance = 0;
+  bool visibility = true;
+  int rays_per_pair = 0;
   int patches = 0;
-  double tolerance = 0;                    // the per-entry tolerance used (Options::tolerance or the automatic one)
   long long pairs_total = 0;               // unordered pairs i < j
   long long pairs_orientation_culled = 0;  // one is behind the other's plane (or coplanar): F = 0, no work
   long long pairs_shaft_culled = 0;        // potentially visible but proven unoccluded by shaft culling: no rays
