@@ -123,11 +123,12 @@ struct Stats {
   std::vector<double> row_error_bound, row_visibility_sigma;
   double row_error_bound_max = 0, row_visibility_sigma_max = 0;  // maxima over rows
 
-  // Independent reciprocity check: on a deterministic sample of computed pairs (every method represented,
-  // up to Options::reciprocity_samples each; pairs whose visibility is estimated by rays are left out: the
-  // check is on the unoccluded integral), A_s F_st as assembled (s the smaller patch, the integrated
-  // direction) is compared with A_t F_ts integrated independently from the other patch by the adaptive
-  // double contour integral (to 1e-3 x the tolerance).
+  // Independent reciprocity check (adaptive rule only; 0 pairs for the fixed rules): on a deterministic sample
+  // of computed pairs (every method represented, up to Options::reciprocity_samples each, independent of the
+  // thread count), A_s F_st as assembled (s the smaller patch, the integrated direction; the unoccluded value,
+  // taken before visibility: the check is on the integral, not on the ray estimate) is compared with A_t F_ts
+  // integrated independently from the other patch by the adaptive double contour integral, t's edges outer
+  // (to 1e-2 x the tolerance).
   long long reciprocity_check_pairs = 0;
   double reciprocity_residual = 0;      // max |A_s F_st - A_t F_ts| / max(A_s F_st, A_t F_ts) over the sample
   // max |F_st - F_ts A_t / A_s| / (error bound of F_st + the reference's error + 1e-14): <= 1 when every
