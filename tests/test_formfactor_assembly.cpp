@@ -411,5 +411,5 @@ TEST(FormFactorReuse, ReusedAssemblyEqualsFreshAssembly) {
   Reuse r{&Fc, bad};
   Options o;
   o.reuse = &r;
-  EXPECT_THROW(assemble(gf, o), InputError);
+  EXPECT_THROW(assemble(gf, o), InternalError) << "a repeated reuse index is a caller bug, not bad input";
 }

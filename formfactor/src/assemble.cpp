@@ -25,6 +25,9 @@ void Assembler::check_options() {
     throw InputError("form factors: max_reflectance must be < 1 (got " + std::to_string(o_.max_reflectance) + ")");
   tol_ = o_.tolerance > 0 ? o_.tolerance : default_tolerance(o_.max_reflectance);
   st_.tolerance = tol_;
+  st_.rule = to_string(o_.rule, o_.order);
+  st_.visibility = o_.visibility;
+  st_.rays_per_pair = o_.rays_per_pair;
   if (!o_.fault_method.empty()) {
     for (int m = 0; m < kMethodCount; ++m)
       if (o_.fault_method == kMethodNames[m]) fault_method_ = m;
@@ -35,15 +38,15 @@ void Assembler::check_options() {
   if (o_.reuse) {
     const Reuse& r = *o_.reuse;
     const int m = r.previous ? r.previous->size() : -1;
-    if (m < 0 || r.previous_index.size() != size_t(n))
-      throw InputError("form factors: reuse needs the previous matrix and one index per patch (" + std::to_string(n) +
-                       "), got " + std::to_string(r.previous_index.size()));
+    LAMBERT_CHECK(m >= 0 && r.previous_index.size() == size_t(n),
+                  "form factors: reuse needs the previous matrix and one index per patch (" + std::to_string(n) +
+                      "), got " + std::to_string(r.previous_index.size()));
     std::vector<char> seen(size_t(std::max(m, 0)), 0);
     for (int p = 0; p < n; ++p) {
       const int q = r.previous_index[p];
-      if (q < -1 || q >= m || (q >= 0 && seen[q]++))
-        throw InputError("form factors: reuse index of patch " + std::to_string(p) + " is " + std::to_string(q) +
-                         " (out of range or repeated; previous matrix has " + std::to_string(m) + " patches)");
+      LAMBERT_CHECK(!(q < -1 || q >= m || (q >= 0 && seen[q]++)),
+                    "form factors: reuse index of patch " + std::to_string(p) + " is " + std::to_string(q) +
+                        " (out of range or repeated; previous matrix has " + std::to_string(m) + " patches)");
     }
     old_ = r.previous_index;
   }
@@ -58,9 +61,6 @@ DenseMatrixOperator Assembler::run() {
   const int n = g_.size();
   st_ = Stats{};
   st_.patches = n;
-  st_.rule = to_string(o_.rule, o_.order);
-  st_.visibility = o_.visibility;
-  st_.rays_per_pair = o_.rays_per_pair;
   st_.pairs_total = (long long)n * (n - 1) / 2;
   check_options();
   prep_ = std::make_unique<Prepared>(g_);

@@ -91,8 +91,8 @@ struct Options {
 double default_tolerance(double max_reflectance);
 
 struct Stats {
-  // What the assembly used (Options, resolved): the rule's name (to_string), tolerance (Options::tolerance
-  // or the automatic one), visibility, rays.
+  // What the assembly used (Options, resolved): the rule's name (to_string), the per-entry tolerance
+  // (Options::tolerance or the automatic one), visibility, rays per pair.
   std::string rule = "adaptive";
   double tolerance = 0;
   bool visibility = true;
