@@ -61,9 +61,6 @@ DenseMatrixOperator Assembler::run() {
   const int n = g_.size();
   st_ = Stats{};
   st_.patches = n;
-  st_.rule = to_string(o_.rule, o_.order);
-  st_.visibility = o_.visibility;
-  st_.rays_per_pair = o_.rays_per_pair;
   st_.pairs_total = (long long)n * (n - 1) / 2;
   check_options();
   prep_ = std::make_unique<Prepared>(g_);
