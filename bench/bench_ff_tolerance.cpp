@@ -7,7 +7,8 @@
 //   cube n (closed unit cube, n x n quads per face), room (32 x 32 per wall, 10 x 10 per block face: 6,744
 //     patches), floorplan (examples/floorplan.obj, prepared as `lambert solve` does): form-factor seconds and
 //     row sums, at the scene's reflectance (cube and room: none given, 0.9 assumed for "0 = default").
-// Usage: bench_ff_tolerance [--scenes sphere4,sphere5,cube64,room,floorplan] [--floorplan PATH] T1 T2 ...
+// --row-check also runs formfactor::check_row_sums (64 patches x 4096 rays) on each matrix.
+// Usage: bench_ff_tolerance [--scenes sphere4,sphere5,cube64,room,floorplan] [--floorplan PATH] [--row-check] T1 T2 ...
 #include <sys/resource.h>
 
 #include <chrono>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include "lambert/formfactor/assemble.hpp"
+#include "lambert/formfactor/check.hpp"
 #include "lambert/io/readers.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/shapes.hpp"
@@ -71,15 +73,18 @@ double cpu_seconds() {
 int main(int argc, char** argv) {
   std::string scenes = "sphere4,sphere5,cube64,room,floorplan", floorplan = "examples/floorplan.obj";
   std::vector<double> tols;
+  bool row_check = false;
   for (int a = 1; a < argc; ++a) {
     const std::string arg = argv[a];
     if (arg == "--scenes" && a + 1 < argc) scenes = argv[++a];
     else if (arg == "--floorplan" && a + 1 < argc) floorplan = argv[++a];
+    else if (arg == "--row-check") row_check = true;
     else tols.push_back(std::atof(arg.c_str()));
   }
   if (tols.empty()) tols = {1e-8, 0};
   std::printf("scene,patches,tolerance,ff_seconds,ff_cpu_seconds,row_sum_dev_max,row_error_bound_max,err_rho0.9,err_rho0.99,err_rho0.999,"
-              "recip_pairs,recip_bound_ratio,recip_worst,recip_residual,pairs_by_method\n");
+              "recip_pairs,recip_bound_ratio,recip_worst,recip_residual,entries_roundoff,entries_outside_unit,"
+              "pairs_no_visible_sample,pairs_over_tolerance,row_visibility_sigma_max,pairs_by_method\n");
   std::stringstream list(scenes);
   std::string name;
   while (std::getline(list, name, ',')) {
@@ -108,9 +113,18 @@ int main(int argc, char** argv) {
       }
       std::string methods;
       for (const auto& [m, c] : st.pairs_by_method) methods += m + "=" + std::to_string(c) + " ";
-      std::printf("%s,%d,%.3g,%.3f,%.3f,%.3g,%.3g,%.3g,%.3g,%.3g,%lld,%.3g,%s,%.3g,%s\n", s.name.c_str(), s.g.size(), st.tolerance,
+      std::printf("%s,%d,%.3g,%.3f,%.3f,%.3g,%.3g,%.3g,%.3g,%.3g,%lld,%.3g,%s,%.3g,%lld,%lld,%lld,%lld,%.3g,%s\n", s.name.c_str(), s.g.size(), st.tolerance,
                   st.seconds["form_factors"], cpu, dev, st.row_error_bound_max, err[0], err[1], err[2], st.reciprocity_check_pairs, st.reciprocity_bound_ratio,
-                  st.reciprocity_worst_method.c_str(), st.reciprocity_residual, methods.c_str());
+                  st.reciprocity_worst_method.c_str(), st.reciprocity_residual, st.entries_roundoff,
+                  st.entries_outside_unit, st.pairs_no_visible_sample, st.pairs_over_tolerance, st.row_visibility_sigma_max,
+                  methods.c_str());
+      if (row_check) {
+        const ff::RowSumCheck rc = ff::check_row_sums(s.g, *F, &st);
+        std::printf("# row-sum check: %d patches, %lld rays, max |difference| %.3g, max ratio %.3g (patch %d: row sum "
+                    "%.6f, rays %.6f, allowed %.3g), %s\n",
+                    rc.patches_checked, rc.rays, rc.max_difference, rc.max_ratio, rc.worst_patch, rc.worst_row_sum,
+                    rc.worst_estimate, rc.worst_allowed, rc.passed ? "passed" : "FAILED");
+      }
       std::fflush(stdout);
     }
   }

@@ -21,7 +21,11 @@ inline double seconds_since(Clock::time_point t0) { return std::chrono::duration
 
 constexpr int kBlock = 64;  // tile edge: 64 x 64 pairs, both matrix blocks stay in L2 while written
 
-constexpr std::uint8_t kNoMethod = 255, kReusedMethod = 254;  // tile method slots: not computed / reused
+// Tile pair codes (TileBuffers::meth): classify's codes (batch.hpp: culled, 1 + tier (+ swap), scalar path),
+// then kCodeScalar + Method for pairs the scalar path computed, kReusedMethod for reused pairs, kNoMethod for
+// cells not computed. code_method() maps a code to its Method (kNoMethod if none).
+constexpr std::uint8_t kNoMethod = 255, kReusedMethod = 254, kCodeScalar = 64;
+const std::array<std::uint8_t, 256>& code_method();
 
 // A pair offered to the independent reciprocity check: s the source (smaller patch), F_st unoccluded as
 // assembled, err its error bound.
@@ -50,8 +54,7 @@ struct TileBuffers {
   std::vector<std::uint8_t> pair_swap;
   std::vector<double> out, val, row, rowj, erow, erowj;
   std::vector<double> err;          // kBlock x kBlock: error bound of F_ij in the tile
-  std::vector<std::uint8_t> meth;   // kBlock x kBlock: method of F_ij (Method, kNoMethod, kReusedMethod)
-  std::vector<std::int8_t> run_code;  // classify's pair codes for one run
+  std::vector<std::uint8_t> meth;   // kBlock x kBlock: pair code of F_ij (see kCodeScalar)
   std::vector<int> rest_j;
   SampleBuffers ray;
   int blocker = -1;  // the occluder that blocked the last shaft tested (OccluderTree::may_block's cache)

@@ -11,7 +11,7 @@
 // from c_s to the bounding sphere of the target (R = circumradius about the centroid), rp = r^p with p the
 // rule's order (4 for tiers 0/1, 2m for Gauss), one less for a source that is not centrally symmetric; tier 0
 // adds the target's term (q^4 or q^3) and both add r^2 q^2 (the Hessian is taken at one centroid only).
-// The constants C are fitted (batch.hpp: kTierConstant). Pairs with d <= 0 or r > kMaxAreaRatio take the
+// The constants C are fitted (kTierConstant below). Pairs with d <= 0 or r > kMaxAreaRatio take the
 // adaptive contour integral.
 
 namespace lambert::formfactor::detail {

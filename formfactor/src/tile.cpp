@@ -8,6 +8,21 @@
 
 namespace lambert::formfactor::detail {
 
+const std::array<std::uint8_t, 256>& code_method() {
+  static const std::array<std::uint8_t, 256> lut = [] {
+    std::array<std::uint8_t, 256> t{};
+    for (int c = 0; c < 256; ++c) {
+      int m = kNoMethod;
+      if (c == kCodeCulled) m = kCulled;
+      else if (c < kCodeScalar && c != kCodeSlow && (c & 15) >= 1 && (c & 15) <= kTiers) m = tier_method((c & 15) - 1);
+      else if (c >= kCodeScalar && c < kCodeScalar + kMethodCount) m = c - kCodeScalar;
+      t[size_t(c)] = std::uint8_t(m);
+    }
+    return t;
+  }();
+  return lut;
+}
+
 // Rule::Point and Rule::Gauss: each pair from the smaller patch (F of the larger by reciprocity in step 5).
 void Assembler::fixed_rule(int i0, int i1, int j0, int j1, bool diagonal, Counters& c) {
   const PatchData& P = prep_->P;
@@ -55,9 +70,8 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   const double* area = pr.P.area.data();
   auto& F = *F_;
   b.code.resize(kBlock + 16);
-  b.run_code.resize(kBlock + 16);
   b.err.assign(size_t(kBlock) * kBlock, 0.0);
-  b.meth.assign(size_t(kBlock) * kBlock, kNoMethod);
+  b.meth.assign(size_t(kBlock) * kBlock, kNoMethod);  // pair codes, see assembler.hpp
   auto slot = [&](int i, int j) { return size_t(i - i0) * kBlock + size_t(j - j0); };
   b.lx.clear(), b.ly.clear(), b.lz.clear(), b.lw.clear(), b.ps.clear(), b.pt.clear(), b.pslot.clear();
   b.ss.clear(), b.st.clear();
@@ -68,13 +82,9 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   // 1. Classification, with tiers 0/1 evaluated in the same pass straight into row i of the matrix (F_ij),
   // over runs of pairs not copied from a previous assembly.
   auto classify_run = [&](int i, int js, int je) {
-    const int nrest = K.classify(s, i, js, je, tol, &F(i, js), &b.err[slot(i, js)], b.run_code.data(), b.code.data(),
-                                 b.rest_j.data(), counts);
-    for (int j = js; j < je; ++j) {
-      const int code = b.run_code[j - js];
-      b.meth[slot(i, j)] = std::uint8_t(code == kCodeCulled ? kCulled : code == kCodeSlow ? kNoMethod
-                                                                                        : tier_method((code & 15) - 1));
-    }
+    const int nrest = K.classify(s, i, js, je, tol, &F(i, js), &b.err[slot(i, js)],
+                                 reinterpret_cast<std::int8_t*>(&b.meth[slot(i, js)]), b.code.data(), b.rest_j.data(),
+                                 counts);
     for (int r = 0; r < nrest; ++r) {
       const int code = b.code[r], j = b.rest_j[r];
       if (code == kCodeSlow) {
@@ -198,13 +208,13 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     if (e.error > tol) ++c.over_tolerance;
     F(i, j) = swap ? e.F * area[j] / area[i] : e.F;
     b.err[slot(i, j)] = swap ? e.error * area[j] / area[i] : e.error;
-    b.meth[slot(i, j)] = std::uint8_t(e.method);
+    b.meth[slot(i, j)] = std::uint8_t(kCodeScalar + e.method);
   }
   // Fault injection (tests of the checks only): one method's results perturbed, both directions.
   if (fault_method_ >= 0)
     for (int i = i0; i < i1; ++i)
       for (int j = bi == bj ? i + 1 : j0; j < j1; ++j)
-        if (b.meth[slot(i, j)] == fault_method_) F(i, j) *= 1 + o_.fault_relative;
+        if (code_method()[b.meth[slot(i, j)]] == fault_method_) F(i, j) *= 1 + o_.fault_relative;
   // Reciprocity-check candidates: per method present in the tile, the first kPerTile pairs met from a seeded
   // start, keyed by a hash of (tile, method, rank); the smallest keys over all tiles are checked (stats.cpp).
   if (o_.reciprocity_samples > 0 && o_.rule == Rule::Adaptive) {
@@ -213,11 +223,13 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     constexpr int kPerTile = 4;  // candidates per method and tile (small scenes have few tiles)
     std::array<int, kMethodCount> seen{};
     seen[kCulled] = kPerTile;
-    for (int k = 0; k < cells; ++k) {
-      const int cell = (start + k) % cells, i = i0 + cell / kBlock, j = j0 + cell % kBlock;
+    const std::uint8_t* meth = b.meth.data();
+    const std::uint8_t* lut = code_method().data();
+    for (int k = 0, cell = start; k < cells; ++k, cell = cell + 1 == cells ? 0 : cell + 1) {
+      const int m = lut[meth[cell]];
+      if (m >= kMethodCount || seen[m] >= kPerTile) continue;  // most cells: a method already taken
+      const int i = i0 + cell / kBlock, j = j0 + cell % kBlock;
       if (j >= j1 || (bi == bj && j <= i)) continue;
-      const int m = b.meth[slot(i, j)];
-      if (m >= kMethodCount || seen[m] >= kPerTile) continue;
       const std::uint64_t key = mix((tile_id * 16 + std::uint64_t(m)) * kPerTile + std::uint64_t(seen[m]++));
       const bool swap = area[j] < area[i];
       const int src = swap ? j : i, tgt = swap ? i : j;

@@ -6,16 +6,23 @@
 // A pair is integrated by the cheapest method whose error estimate is <= tolerance:
 //   far_field         centroid-to-centroid kernel + second-order (Hessian) terms on both patches
 //   centroid_hessian  analytic point-to-polygon from the source centroid + Hessian term
-//   gauss4/9/16       m x m Gauss outer rule over the source, analytic (contour) inner integral
-// chosen a priori from size/distance (estimate C S r^p: S = A_t/(pi d^2), r = rho_s/d; C = 4x the worst
-// ratio seen on 40,000 random pairs; on 6,000 further random pairs the largest error was 0.15 x tolerance),
-//   contour           the rest: touching pairs, pairs within 2.5 source radii, pairs cutting each other's
+//   gauss4/9/16/36/64 m x m Gauss outer rule over the source, analytic (contour) inner integral
+// chosen a priori from size/distance (estimate C S r^p: S = A_t/(pi d^2), r = R_s/d with R_s the source's
+// circumradius; C = 4x the worst ratio seen on 40,000 random pairs; src/tiers.hpp, one implementation for the
+// scalar and SIMD paths),
+//   contour           the rest: touching pairs, pairs closer than 2 source radii (source centroid to the
+//                     target's bounding sphere), pairs cutting each other's
 //                     plane, pairs no rule fits: mutual clipping, then the double line integral with adaptive
 //                     Gauss-Kronrod, stopped when its (conservative) error estimate is <= tolerance.
 // Triangles and convex quads run in SIMD batches; other polygons take the same rules in scalar code.
-// Default 1e-8: catalogue values come out within ~1e-10, every entry of a closed cube within 1e-9.
+// The far-field tiers' errors have one sign along a row, so a row sum's error grows with the number of such
+// entries; the solve amplifies a row-sum error delta to a radiance error of about rho delta / (1 - rho)
+// (docs/physics.md). Hence the automatic tolerance (Options::tolerance = 0) follows the scene's largest
+// reflectance: default_tolerance() below. Measured errors and costs: docs/benchmarks.md, docs/accuracy.md.
 // Visibility is NOT covered by `tolerance`: the visible fraction is a ray estimate (rays_per_pair), and only
-// pairs whose segments may actually be blocked are ray-tested.
+// pairs whose segments may actually be blocked are ray-tested; Stats::row_visibility_sigma states its error.
+// What each assembly admits (per-row error bounds, an independent reciprocity check, entries outside [0, 1])
+// is reported in Stats; check.hpp checks row sums independently with rays.
 // Storage: double (8 N^2 bytes), see dense.hpp.
 #include <cstddef>
 #include <functional>
@@ -116,11 +123,12 @@ struct Stats {
   std::vector<double> row_error_bound, row_visibility_sigma;
   double row_error_bound_max = 0, row_visibility_sigma_max = 0;  // maxima over rows
 
-  // Independent reciprocity check: on a deterministic sample of computed pairs (every method represented,
-  // up to Options::reciprocity_samples each; pairs whose visibility is estimated by rays are left out: the
-  // check is on the unoccluded integral), A_s F_st as assembled (s the smaller patch, the integrated
-  // direction) is compared with A_t F_ts integrated independently from the other patch by the adaptive
-  // double contour integral (to 1e-3 x the tolerance).
+  // Independent reciprocity check (adaptive rule only; 0 pairs for the fixed rules): on a deterministic sample
+  // of computed pairs (every method represented, up to Options::reciprocity_samples each, independent of the
+  // thread count), A_s F_st as assembled (s the smaller patch, the integrated direction; the unoccluded value,
+  // taken before visibility: the check is on the integral, not on the ray estimate) is compared with A_t F_ts
+  // integrated independently from the other patch by the adaptive double contour integral, t's edges outer
+  // (to 1e-2 x the tolerance).
   long long reciprocity_check_pairs = 0;
   double reciprocity_residual = 0;      // max |A_s F_st - A_t F_ts| / max(A_s F_st, A_t F_ts) over the sample
   // max |F_st - F_ts A_t / A_s| / (error bound of F_st + the reference's error + 1e-14): <= 1 when every
@@ -142,7 +150,8 @@ struct Stats {
 };
 
 // N x N matrix, F(i, j) from patch i to patch j, F(i, i) = 0. Throws lambert::InputError (with the needed
-// and allowed bytes) before allocating if N^2 * 8 bytes exceeds max_bytes, if tolerance <= 0, if the Gauss
+// and allowed bytes) before allocating if N^2 * 8 bytes exceeds max_bytes, if tolerance < 0, if
+// max_reflectance >= 1, if fault_method names no method, if the Gauss
 // order is outside 1..8, or if reuse does not match (index sizes, indices out of range or repeated).
 // "adaptive", "point", "gauss1".."gauss8" <-> (rule, order); parse throws InputError naming the choices.
 std::string to_string(Rule rule, int order);
