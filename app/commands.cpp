@@ -51,6 +51,7 @@ mesh::PrepareOptions prepare_options(const CommonOptions& o) {
   mesh::PrepareOptions prep;
   prep.repair = !o.no_repair;
   prep.max_edge = o.max_edge;
+  prep.orient = mesh::parse_orientation(o.orient);
   return prep;
 }
 

@@ -10,6 +10,7 @@ struct CommonOptions {
   bool quiet = false;
   bool no_repair = false;  // skip mesh::prepare's repairs (detection still runs)
   double max_edge = 0;     // m; 0 = no refinement
+  std::string orient = "visibility";  // mesh::parse_orientation: file | consistent | visibility
   // form factors (0 = module default)
   bool no_visibility = false;
   double ff_tolerance = 0;

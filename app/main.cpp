@@ -51,6 +51,12 @@ int main(int argc, char** argv) {
     sub->add_flag("--no-repair", common.no_repair,
                   "Use the mesh as it is: no welding, degenerate-face removal or re-orientation "
                   "(self-intersections and T-junctions are still reported)");
+    sub->add_option("--orient", common.orient,
+                    "Face orientation repair: file (keep the file's winding), consistent (faces of a connected "
+                    "surface agree with its majority), visibility (also turn a whole surface round when the rest "
+                    "of the scene sees its back)")
+        ->check(CLI::IsMember({"file", "consistent", "visibility"}))
+        ->capture_default_str();
     sub->add_option("--max-edge", common.max_edge,
                     "Refine: split every edge longer than this (metres) so no patch edge exceeds it; 0 = off")
         ->check(CLI::NonNegativeNumber)

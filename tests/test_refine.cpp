@@ -46,7 +46,7 @@ PolygonSoup mixed_faces() {
     disk.push_back(static_cast<int>(p.size()) - 1);
   }
   f.push_back(disk);
-  f.push_back({22, 24, 23});
+  f.push_back({22, 23, 24});  // above the others, facing them (-y): no orientation repair needed
   return soup_of(p, f);
 }
 

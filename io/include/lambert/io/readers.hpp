@@ -27,7 +27,17 @@ mesh::PolygonSoup read_ply(const std::string& path);
 // written all as integers are 0..255, otherwise floats 0..1; materials as for PLY.
 mesh::PolygonSoup read_off(const std::string& path);
 
-// Dispatches on the extension (.obj, .ply, .off, case-insensitive).
+// STL, binary or ASCII, told apart by content (not by extension): binary when the file size is exactly
+// 84 + 50 x (the header's facet count), else ASCII when it starts with "solid", else a binary file whose
+// count lies (an error naming the first incomplete facet). Facet k is input face k (a triangle with its
+// own three vertices: mesh::prepare welds them). The facet normal is ignored: the vertex order (right-hand
+// rule) gives the front side, as for every format. ASCII "solid NAME" names a group. Every face gets
+// material 0 ("default"; --materials names or face ranges override it). Errors name the facet (and the
+// line for ASCII).
+mesh::PolygonSoup read_stl(const std::string& path);
+
+// Dispatches on the extension (.obj, .ply, .off, .stl, case-insensitive); any other extension by
+// content (PLY and OFF magic words, STL as read_stl tells it).
 mesh::PolygonSoup read_soup(const std::string& path);
 
 // Applies a --materials JSON file:
@@ -49,5 +59,7 @@ void write_obj(const mesh::PolygonSoup& soup, const std::string& obj_path);
 // Colours are 8-bit when every value is k/255 exactly, else double (PLY) / decimals (OFF).
 void write_ply(const mesh::PolygonSoup& soup, const std::string& path, bool binary);
 void write_off(const mesh::PolygonSoup& soup, const std::string& path);
+// STL keeps only geometry: faces as triangles (n-gons ear-clipped), binary (float32) or ASCII.
+void write_stl(const mesh::PolygonSoup& soup, const std::string& path, bool binary);
 
 }  // namespace lambert::io

@@ -1,0 +1,187 @@
+// Issue 11: real models solve correctly. Orientation that never breaks a valid model, translation
+// invariance, two-sided faces, contact lines and crossings imprinted. Small generated scenes.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "lambert/formfactor/assemble.hpp"
+#include "lambert/io/readers.hpp"
+#include "lambert/mesh/prepare.hpp"
+#include "lambert/mesh/shapes.hpp"
+#include "lambert/solver/solve.hpp"
+#include "soup_util.hpp"
+
+using namespace lambert;
+using namespace lambert::mesh;
+
+namespace {
+
+// Indexed soup from polygons, identical coordinates sharing one vertex; material per polygon.
+PolygonSoup soup_from(const shapes::Polygons& polys, const std::vector<int>& material = {}) {
+  std::map<std::array<double, 3>, int> index;
+  std::vector<Vec3> pos;
+  std::vector<std::vector<int>> faces;
+  for (const auto& poly : polys) {
+    faces.emplace_back();
+    for (const Vec3& p : poly) {
+      const auto [it, fresh] = index.try_emplace({p.x(), p.y(), p.z()}, static_cast<int>(pos.size()));
+      if (fresh) pos.push_back(p);
+      faces.back().push_back(it->second);
+    }
+  }
+  PolygonSoup s = test_util::soup_of(pos, faces);
+  for (size_t k = 0; k < material.size() && k < s.faces.size(); ++k) s.faces[k].material = material[k];
+  return s;
+}
+
+int add_material(PolygonSoup& s, const std::string& name, double rho, double emission, bool two_sided = false) {
+  Material m;
+  m.name = name;
+  m.reflectance = RGB::Constant(rho);
+  m.emission = RGB::Constant(emission);
+  m.two_sided = two_sided;
+  s.materials.push_back(m);
+  return static_cast<int>(s.materials.size()) - 1;
+}
+
+long count(const Report& r, const std::string& key) {
+  const auto it = r.counts.find(key);
+  return it == r.counts.end() ? -1 : it->second;
+}
+
+std::string all_warnings(const Report& r) {
+  std::string s;
+  for (const auto& w : r.warnings) s += "\n  " + w;
+  return s;
+}
+
+// Signed volume of the faces with origin in [first, last] (> 0: normals point outward).
+double signed_volume(const PolygonSoup& s, int first, int last) {
+  double v = 0;
+  for (size_t k = 0; k < s.faces.size(); ++k) {
+    const int o = s.faces[k].origin >= 0 ? s.faces[k].origin : static_cast<int>(k);
+    if (o < first || o > last) continue;
+    const auto& f = s.faces[k].vertices;
+    for (size_t t = 1; t + 1 < f.size(); ++t)
+      v += s.positions[f[0]].dot(s.positions[f[t]].cross(s.positions[f[t + 1]])) / 6;
+  }
+  return v;
+}
+
+// Radiance (grey, channel 0) of every patch: form factors with Embree visibility, direct-accuracy solve.
+Eigen::VectorXd solve_grey(const Scene& scene, int rays = 16) {
+  formfactor::Options fo;
+  fo.rays_per_pair = rays;
+  const auto F = formfactor::assemble(scene.geometry, fo);
+  solver::Options so;
+  so.tolerance = 1e-12;
+  const auto sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field(), so);
+  return sol.radiance.col(0);
+}
+
+std::string shared_model(const std::string& name) {
+  return std::string(LAMBERT_SOURCE_DIR) + "/../shared/models/" + name;
+}
+
+// Open box [0,2]^3 without its -z wall (the open front), faces inward, the ceiling (+y) emits;
+// a closed icosphere (radius 0.5, outward) in the middle.
+PolygonSoup sphere_in_open_box(bool sphere_outward) {
+  auto box = shapes::box(Vec3::Zero(), Vec3::Constant(2), 1, true);
+  box.erase(box.begin() + 4);  // -z: open front
+  shapes::Polygons polys = box;
+  auto sphere = shapes::icosphere(1, 0.5, !sphere_outward);
+  for (auto& t : sphere)
+    for (Vec3& p : t) p += Vec3::Constant(1);
+  polys.insert(polys.end(), sphere.begin(), sphere.end());
+  PolygonSoup s = soup_from(polys);
+  const int white = add_material(s, "white", 0.7, 0);
+  const int lamp = add_material(s, "lamp", 0.5, 10);
+  for (auto& f : s.faces) f.material = white;
+  s.faces[3].material = lamp;  // +y of the box: the ceiling
+  return s;
+}
+
+}  // namespace
+
+// ---- orientation -----------------------------------------------------------------------------------
+
+TEST(RealModelsOrient, ClosedSphereInOpenBoxKeepsOutwardWindingAndItsRadiance) {
+  const PolygonSoup s = sphere_in_open_box(true);
+  const int nsphere = static_cast<int>(s.faces.size()) - 5;
+  for (auto mode : {Orientation::visibility, Orientation::consistent, Orientation::file}) {
+    PrepareOptions o;
+    o.orient = mode;
+    Report r;
+    const PolygonSoup out = prepare(s, o, r);
+    EXPECT_EQ(count(r, "faces_reoriented"), 0) << int(mode) << all_warnings(r);
+    EXPECT_EQ(count(r, "surfaces_flipped"), 0) << int(mode) << all_warnings(r);
+    EXPECT_GT(signed_volume(out, 5, 5 + nsphere - 1), 0) << "sphere turned inside out, mode " << int(mode);
+  }
+  // The repaired solve equals the unrepaired solve of the same (correct) file: same patches, same
+  // geometry, same seeds, so the same numbers up to the solve's tolerance (1e-12 relative).
+  const Scene repaired = prepare_and_build(s, {});
+  PrepareOptions raw;
+  raw.repair = false;
+  const Scene unrepaired = prepare_and_build(s, raw);
+  ASSERT_EQ(repaired.patches(), unrepaired.patches());
+  const Eigen::VectorXd a = solve_grey(repaired), b = solve_grey(unrepaired);
+  double sphere_mean = 0;
+  for (int p = 5; p < repaired.patches(); ++p) {
+    EXPECT_NEAR(a[p], b[p], 1e-9 * b.maxCoeff()) << "patch " << p;
+    sphere_mean += a[p] / nsphere;
+  }
+  // And the sphere is lit: its mean radiance is a sizeable share of the emitter's reflected light.
+  EXPECT_GT(sphere_mean, 0.05 * 10) << "sphere black";
+}
+
+TEST(RealModelsOrient, SurfaceSeenOnlyFromBehindIsTurnedRoundOnlyByVisibility) {
+  // The same scene with the sphere wound inward (a common export error): visibility turns it round
+  // (one surface, all its faces), consistent and file keep the file's winding.
+  const PolygonSoup s = sphere_in_open_box(false);
+  const long nsphere = static_cast<long>(s.faces.size()) - 5;
+  for (auto mode : {Orientation::visibility, Orientation::consistent, Orientation::file}) {
+    PrepareOptions o;
+    o.orient = mode;
+    Report r;
+    const PolygonSoup out = prepare(s, o, r);
+    const bool vis = mode == Orientation::visibility;
+    EXPECT_EQ(count(r, "surfaces_flipped"), vis ? 1 : 0) << int(mode) << all_warnings(r);
+    EXPECT_EQ(count(r, "faces_reoriented"), vis ? nsphere : 0) << int(mode) << all_warnings(r);
+    EXPECT_EQ(signed_volume(out, 5, 5 + int(nsphere) - 1) > 0, vis) << int(mode);
+  }
+}
+
+TEST(RealModelsOrient, RoomWoundOutwardAroundABlockIsTurnedRound) {
+  // Closed room [0,4]^3 wound outward (wrong) with a block inside wound outward (right): the block
+  // sees the room's back, so the room is turned round; the block is kept.
+  const auto room = shapes::box(Vec3::Zero(), Vec3::Constant(4), 1, false);
+  const auto block = shapes::box(Vec3::Constant(1.5), Vec3::Constant(2.5), 1, false);
+  shapes::Polygons polys = room;
+  polys.insert(polys.end(), block.begin(), block.end());
+  Report r;
+  const PolygonSoup out = prepare(soup_from(polys), {}, r);
+  EXPECT_EQ(count(r, "surfaces_flipped"), 1) << all_warnings(r);
+  EXPECT_EQ(count(r, "faces_reoriented"), 6) << all_warnings(r);
+  EXPECT_DOUBLE_EQ(signed_volume(out, 0, 5), -64.0);  // exact: integer corners
+  EXPECT_DOUBLE_EQ(signed_volume(out, 6, 11), 1.0);
+}
+
+TEST(RealModelsOrient, PublicModelsAreNotReoriented) {
+  // The public Cornell box (open front, two closed boxes) and the shipped floor plan are valid:
+  // nothing is turned round.
+  for (const std::string path : {shared_model("CornellBox-Original.obj"),
+                                 std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj"}) {
+    if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found (../shared/models is outside the repository)";
+    Report r;
+    prepare(io::read_obj(path), {}, r);
+    EXPECT_EQ(count(r, "faces_reoriented"), 0) << path << all_warnings(r);
+    EXPECT_EQ(count(r, "surfaces_flipped"), 0) << path << all_warnings(r);
+  }
+}
