@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
   common.rays_per_pair = formfactor::Options{}.rays_per_pair;
   common.max_iterations = solver::Options{}.max_iterations;
   auto add_common = [&](CLI::App* sub, bool with_output) {
-    sub->add_option("scene", common.scene, "Scene file: .obj (+ .mtl), .ply or .off")->required()->check(CLI::ExistingFile);
+    sub->add_option("scene", common.scene, "Scene file: .obj (+ .mtl), .ply, .off or .stl (binary or ASCII; other extensions by content)")->required()->check(CLI::ExistingFile);
     sub->add_option("--materials", common.materials,
                     "JSON file mapping material names or input-face ranges to reflectance and emission "
                     "(overrides MTL values; see README)")
