@@ -218,3 +218,94 @@ TEST(RealModelsShift, GeoreferencedSceneHasTheSameFormFactors) {
   EXPECT_LE(worst, 1e-9) << "F(" << wi << ", " << wj << ") = " << Fa.matrix()(wi, wj) << " unshifted, "
                          << Fb.matrix()(wi, wj) << " shifted";
 }
+
+// ---- two-sided surfaces ----------------------------------------------------------------------------
+
+namespace {
+
+// Two closed 2 x 2 x 2.5 m rooms side by side (A: x in [0, 2], B: x in [2, 4]), each with its own five
+// walls (2 x 2 quads each: faces 0-19 A, 20-39 B), sharing one partition polygon in x = 2 (face 40),
+// its front facing A. y is up; the ceilings (+y) emit lamp_a and lamp_b.
+PolygonSoup two_rooms_with_partition(double lamp_a, double lamp_b, bool two_sided) {
+  shapes::Polygons polys;
+  for (int r = 0; r < 2; ++r) {
+    auto box = shapes::box(Vec3(2.0 * r, 0, 0), Vec3(2.0 * r + 2, 2.5, 2), 2, true);  // 2x2 quads per side
+    // shapes::box order: -x, +x, -y, +y, -z, +z, each 4 quads; drop the side facing the partition.
+    const int drop = r == 0 ? 1 : 0;
+    for (int side = 0; side < 6; ++side)
+      if (side != drop)
+        for (int q = 0; q < 4; ++q) polys.push_back(box[4 * side + q]);
+  }
+  polys.push_back({{2, 0, 0}, {2, 0, 2}, {2, 2.5, 2}, {2, 2.5, 0}});  // normal -x: into A
+  PolygonSoup s = soup_from(polys);
+  const int white = add_material(s, "white", 0.6, 0);
+  const int lamp_mat_a = add_material(s, "lamp_a", 0.6, lamp_a);
+  const int lamp_mat_b = add_material(s, "lamp_b", 0.6, lamp_b);
+  const int wall = add_material(s, "partition", 0.6, 0, two_sided);
+  for (auto& f : s.faces) f.material = white;
+  for (int q = 0; q < 4; ++q) s.faces[4 * 2 + q].material = lamp_mat_a;  // A's +y (ceiling): its 3rd kept side
+  for (int q = 0; q < 4; ++q) s.faces[20 + 4 * 2 + q].material = lamp_mat_b;  // B's +y: its 3rd kept side
+  s.faces.back().material = wall;
+  return s;
+}
+
+}  // namespace
+
+TEST(RealModelsTwoSided, PartitionSidesEachSeeOnlyTheirOwnRoom) {
+  const int partition = 40;  // input face
+  for (bool lit_a : {true, false}) {
+    const PolygonSoup s = two_rooms_with_partition(lit_a ? 10 : 0, lit_a ? 0 : 10, true);
+    Report r;
+    const Scene scene = prepare_and_build(s, {});
+    ASSERT_EQ(scene.patches(), 42) << all_warnings(scene.report);
+    EXPECT_EQ(count(scene.report, "two_sided_faces"), 1);
+    EXPECT_EQ(scene.face_id[40], partition);
+    EXPECT_EQ(scene.face_id[41], partition);
+    EXPECT_EQ(scene.side[40], 0);
+    EXPECT_EQ(scene.side[41], 1);
+    EXPECT_NEAR(scene.geometry.normal[41].dot(scene.geometry.normal[40]), -1, 1e-15);
+    const Eigen::VectorXd L = solve_grey(scene);
+    // Lit room: patches with x-centroid < 2 (A) or > 2 (B); the partition's front is in A, back in B.
+    double lit_mean = 0, dark_max = 0;
+    int lit_n = 0;
+    for (int p = 0; p < 40; ++p) {
+      const bool in_a = scene.geometry.centroid[p].x() < 2;
+      if (in_a == lit_a) lit_mean += L[p], ++lit_n;
+      else dark_max = std::max(dark_max, std::abs(L[p]));
+    }
+    lit_mean /= lit_n;
+    const double front = L[40], back = L[41];
+    const double lit_side = lit_a ? front : back, dark_side = lit_a ? back : front;
+    dark_max = std::max(dark_max, std::abs(dark_side));
+    // Dark room: no light reaches it (the partition blocks every ray; no leak through its own back).
+    EXPECT_LE(dark_max, 1e-9 * lit_mean) << (lit_a ? "A lit" : "B lit") << ", front " << front << ", back " << back;
+    // The lit side is as bright as a wall of the lit room (within a factor 3: geometry differs).
+    EXPECT_GT(lit_side, lit_mean / 3) << (lit_a ? "A lit" : "B lit");
+  }
+}
+
+TEST(RealModelsTwoSided, OneSidedPartitionSeenFromBehindStaysBlack) {
+  // The same partition one-sided: lit from B (its back) it stays black; the rest as before.
+  const Scene scene = prepare_and_build(two_rooms_with_partition(0, 10, false), {});
+  ASSERT_EQ(scene.patches(), 41);
+  const Eigen::VectorXd L = solve_grey(scene);
+  // Nothing arrives: only the solver's round-off (GMRES at 1e-12) is left.
+  EXPECT_LE(std::abs(L[40]), 1e-12 * L.maxCoeff()) << "a one-sided face seen from behind receives nothing";
+}
+
+TEST(RealModelsTwoSided, FacesSeenFromBehindAreCounted) {
+  // One quad of A's far wall (input face 0, x = 0) wound the wrong way: its front faces out of the
+  // room (rays escape), its back into the lit room. --orient file keeps it and counts it as seen from
+  // behind; consistent and visibility turn it back (the wall's majority) and count nothing.
+  PolygonSoup s = two_rooms_with_partition(10, 0, false);
+  std::reverse(s.faces[0].vertices.begin(), s.faces[0].vertices.end());
+  for (auto mode : {Orientation::file, Orientation::consistent, Orientation::visibility}) {
+    PrepareOptions o;
+    o.orient = mode;
+    Report r;
+    prepare(s, o, r);
+    const bool file = mode == Orientation::file;
+    EXPECT_EQ(count(r, "faces_seen_from_behind"), file ? 1 : 0) << int(mode) << all_warnings(r);
+    EXPECT_EQ(count(r, "faces_reoriented"), file ? 0 : 1) << int(mode) << all_warnings(r);
+  }
+}

@@ -297,6 +297,7 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
   detect_self_intersections(out, usable, tol, report);
   detect_t_junctions(out, usable, tol, report);
   if (options.max_edge > 0) refine(out, options.max_edge, report);
+  duplicate_two_sided(out, report);
   return out;
 }
 

@@ -281,9 +281,17 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
 
   // 4. Duplicate vertices: distinct used positions with identical coordinates (kept apart here).
   {
+    // The back of a two-sided face has its own copies of the front's vertices: not duplicates.
+    std::vector<char> back_only(nv, 0);
+    for (const auto& f : soup.faces)
+      if (f.side == 1)
+        for (int v : f.vertices) back_only[v] = 1;
+    for (const auto& f : soup.faces)
+      if (f.side != 1)
+        for (int v : f.vertices) back_only[v] = 0;
     std::vector<int> used;
     for (int v = 0; v < nv; ++v)
-      if (position_first[v] >= 0) used.push_back(v);
+      if (position_first[v] >= 0 && !back_only[v]) used.push_back(v);
     auto less = [&](int a, int b) {
       const Vec3 &p = soup.positions[a], &q = soup.positions[b];
       if (p.x() != q.x()) return p.x() < q.x();
@@ -349,8 +357,10 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
   scene.face_id.resize(np);
   scene.material.resize(np);
   scene.group.resize(np);
+  scene.side.resize(np);
   for (int p = 0; p < np; ++p) {
     const SoupFace& f = soup.faces[specs[p].face];
+    scene.side[p] = f.side;
     scene.face_id[p] = input_face(soup, specs[p].face);
     scene.material[p] = f.material;
     scene.group[p] = f.group;

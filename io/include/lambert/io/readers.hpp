@@ -11,7 +11,9 @@
 namespace lambert::io {
 
 // Wavefront OBJ: v, f (v, v/vt, v//vn, v/vt/vn, negative indices), o/g (-> groups), mtllib, usemtl.
-// MTL: newmtl, Kd (reflectance), Ke (radiance W m^-2 sr^-1); one value means grey. Faces before
+// MTL: newmtl, Kd (reflectance), Ke (radiance W m^-2 sr^-1); one value means grey; "two_sided" or
+// "two_sided 1" (a lambert extension; "two_sided 0" = one-sided, the default) marks the material
+// two-sided (Material::two_sided). Faces before
 // any usemtl get material 0 and are counted in faces_without_material. An MTL material named
 // "default" replaces material 0.
 mesh::PolygonSoup read_obj(const std::string& path);
@@ -41,8 +43,10 @@ mesh::PolygonSoup read_stl(const std::string& path);
 mesh::PolygonSoup read_soup(const std::string& path);
 
 // Applies a --materials JSON file:
-//   {"materials": {"NAME": {"reflectance": R, "emission": E}, ...},
-//    "faces": [{"range": [first, last], "material": "NAME"} | {"range": [...], "reflectance": R, "emission": E}]}
+//   {"materials": {"NAME": {"reflectance": R, "emission": E, "two_sided": B}, ...},
+//    "faces": [{"range": [first, last], "material": "NAME"} |
+//              {"range": [...], "reflectance": R, "emission": E, "two_sided": B}]}
+// B: true or false (default false: one-sided).
 // R, E: a number (grey) or an array of 1 or 3 numbers. "materials" entries override only the given
 // fields of the material with that name, or create it (grey 0.5, no emission). "faces" ranges are
 // inclusive 0-based input face indices; inline values create a material "faces_FIRST-LAST".

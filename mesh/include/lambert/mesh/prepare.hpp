@@ -59,6 +59,12 @@
 // (A face the mesher cannot refine, not expected for faces build_scene accepts, keeps its size and
 // is warned about: "faces_not_refined".)
 //
+// Two-sided faces (last, with or without repair): a face whose material is two_sided becomes two
+// patches, the face as given (side 0) and right after it its back (side 1: the corners reversed, on
+// copies of the vertices), each with its own radiance; both keep the input face's origin. Visibility
+// ignores a patch coplanar with the ray's source or target, so the two never shadow each other.
+//                                                                                  "two_sided_faces"
+//
 // Each step records its count (0 too) in report.counts; a warning names up to 5 input faces.
 #include "lambert/mesh/scene.hpp"
 #include "lambert/mesh/soup.hpp"
