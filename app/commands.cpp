@@ -6,16 +6,21 @@
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "lambert/formfactor/assemble.hpp"
+#include "lambert/formfactor/json.hpp"
+#include "lambert/mesh/json.hpp"
+#include "lambert/refine/json.hpp"
+#include "lambert/solver/json.hpp"
 #include "lambert/io/atomic_file.hpp"
 #include "lambert/io/readers.hpp"
 #include "lambert/io/vtk.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/scene.hpp"
-#include "lambert/solver/adaptive.hpp"
+#include "lambert/refine/adaptive.hpp"
 #include "lambert/solver/solve.hpp"
-#include "lambert/solver/verify.hpp"
+#include "lambert/verify/verify.hpp"
 #include "progress.hpp"
 
 #ifndef LAMBERT_VERSION
@@ -37,8 +42,6 @@ std::string rgb_str(const RGB& c, const char* f = "{:.4g}") {
                      fmt::format(fmt::runtime(f), c[2]));
 }
 
-json rgb_json(const RGB& c) { return json::array({c[0], c[1], c[2]}); }
-
 // Reads the scene file and applies --materials.
 mesh::PolygonSoup read_input(const CommonOptions& o, PhaseTimer& timer) {
   timer.start("load");
@@ -47,31 +50,14 @@ mesh::PolygonSoup read_input(const CommonOptions& o, PhaseTimer& timer) {
   return soup;
 }
 
-mesh::PrepareOptions prepare_options(const CommonOptions& o) {
-  mesh::PrepareOptions prep;
-  prep.repair = !o.no_repair;
-  prep.max_edge = o.max_edge;
-  prep.orient = mesh::parse_orientation(o.orient);
-  return prep;
-}
-
 // Reads, applies --materials, prepares, validates. Prints validation warnings unless quiet.
 mesh::Scene load(const CommonOptions& o, PhaseTimer& timer) {
   const mesh::PolygonSoup soup = read_input(o, timer);
   timer.start("prepare");
-  mesh::Scene scene = mesh::prepare_and_build(soup, prepare_options(o));
+  mesh::Scene scene = mesh::prepare_and_build(soup, o.prepare);
   timer.stop();
   for (const auto& w : scene.report.warnings) say(o, "lambert: warning: " + w);
   return scene;
-}
-
-json report_json(const mesh::Report& r) {
-  json j;
-  j["counts"] = r.counts;
-  j["messages"] = r.warnings;
-  j["worst_nonplanarity_m"] = r.worst_nonplanarity;
-  j["worst_nonplanar_face"] = r.worst_nonplanar_face;
-  return j;
 }
 
 json phases_json(const PhaseTimer& t) {
@@ -91,44 +77,12 @@ void write_json(const std::string& path, const json& j) {
 }
 
 formfactor::Options ff_options(const CommonOptions& o, Progress* progress) {
-  formfactor::Options f;
+  formfactor::Options f = o.ff;
   f.visibility = !o.no_visibility;
-  if (o.ff_tolerance > 0) f.tolerance = o.ff_tolerance;
   formfactor::parse_rule(o.ff_rule, f.rule, f.order);
-  if (o.rays_per_pair > 0) f.rays_per_pair = o.rays_per_pair;
   f.threads = o.threads;
   if (progress) f.progress = [progress](double x) { progress->update(x); };
   return f;
-}
-
-json ff_json(const formfactor::Stats& s, const formfactor::Options& f) {
-  json j;
-  j["rule"] = formfactor::to_string(f.rule, f.order);
-  j["tolerance"] = f.tolerance;
-  j["pairs_reused"] = s.pairs_reused;
-  j["visibility"] = f.visibility;
-  j["rays_per_pair"] = f.rays_per_pair;
-  j["pairs_total"] = s.pairs_total;
-  j["pairs_orientation_culled"] = s.pairs_orientation_culled;
-  j["pairs_shaft_culled"] = s.pairs_shaft_culled;
-  j["pairs_ray_tested"] = s.pairs_ray_tested;
-  j["pairs_by_method"] = s.pairs_by_method;
-  j["rays_cast"] = s.rays_cast;
-  j["scene_can_occlude"] = s.scene_can_occlude;
-  j["row_sum"] = {{"min", s.row_sum_min}, {"max", s.row_sum_max}, {"mean", s.row_sum_mean}};
-  j["reciprocity_residual"] = s.reciprocity_residual;
-  j["entries_outside_unit"] = s.entries_outside_unit;
-  j["seconds"] = s.seconds;
-  j["bytes"] = s.bytes;
-  return j;
-}
-
-std::string ff_summary(const formfactor::Stats& s) {
-  return fmt::format(
-      "  pairs        {} ({} culled by orientation, {} proven unoccluded, {} ray-tested), rays {}\n"
-      "  form factors row sum min/mean/max {:.6f} / {:.6f} / {:.6f}, reciprocity residual {:.2e}, outside [0,1]: {}\n",
-      s.pairs_total, s.pairs_orientation_culled, s.pairs_shaft_culled, s.pairs_ray_tested, s.rays_cast, s.row_sum_min,
-      s.row_sum_mean, s.row_sum_max, s.reciprocity_residual, s.entries_outside_unit);
 }
 
 std::string scene_line(const mesh::Scene& scene) {
@@ -139,16 +93,178 @@ std::string scene_line(const mesh::Scene& scene) {
                      scene.materials.size());
 }
 
-json base_stats(const mesh::Scene& scene) {
+// One run of `solve` or `formfactors`: what the summary and --stats describe (one schema for both).
+struct Run {
+  std::string command;                             // "solve" | "formfactors"
+  const CommonOptions* options = nullptr;
+  const mesh::Scene* scene = nullptr;
+  const formfactor::Stats* ff = nullptr;           // the (final) assembly
+  const solver::Solution* solution = nullptr;      // solve only
+  const refine::AdaptiveResult* adaptive = nullptr;  // solve --adaptive-budget only
+  long long entries_written = -1;                  // formfactors only
+};
+
+// A finding that the summary and --stats report; `fatal` findings make the result untrustworthy (exit 3,
+// no output written).
+struct Finding {
+  std::string key;
+  double value = 0;
+  std::string message;
+  bool fatal = false;
+};
+
+// Everything a run found wrong with its own result, one entry per kind, only when nonzero.
+std::vector<Finding> assess(const Run& r) {
+  std::vector<Finding> out;
+  auto add = [&](std::string key, double value, std::string message, bool fatal) {
+    if (value != 0) out.push_back({std::move(key), value, std::move(message), fatal});
+  };
+  // Form-factor failures, over every adaptive round (each computed pair is counted in the round that
+  // computed it).
+  long long over = 0, outside = 0;
+  if (r.adaptive) {
+    for (const auto& rd : r.adaptive->rounds) {
+      over += rd.ff.pairs_over_tolerance;
+      outside += rd.ff.entries_outside_unit;
+    }
+  } else if (r.ff) {
+    over = r.ff->pairs_over_tolerance;
+    outside = r.ff->entries_outside_unit;
+  }
+  add("pairs_over_tolerance", double(over),
+      fmt::format("{} pairs stopped their adaptive integration above the form-factor tolerance", over), false);
+  add("entries_outside_unit", double(outside),
+      fmt::format("{} form factors outside [0, 1] (never clamped): the form factors are wrong", outside), true);
+  if (r.adaptive) {
+    long unconverged = 0;
+    for (const auto& rd : r.adaptive->rounds) unconverged += rd.solve_converged ? 0 : 1;
+    add("unconverged_solves", double(unconverged),
+        fmt::format("{} adaptive round(s) ended with a solve that did not reach the tolerance", unconverged), true);
+  } else if (r.solution && !r.solution->converged) {
+    std::string why;
+    for (size_t c = 0; c < r.solution->channels.size(); ++c)
+      why += fmt::format(" channel {}: {} after {} iterations, residual {:.3e};", c, r.solution->channels[c].stop,
+                         r.solution->channels[c].iterations, r.solution->channels[c].residual);
+    add("unconverged_solves", 1,
+        fmt::format("the solve did not reach the tolerance {:g}:{} (try --method bicgstab or a larger "
+                    "--max-iterations)", r.options->solve.tolerance, why),
+        true);
+  }
+  return out;
+}
+
+// Error bound on the radiance in the max norm, relative to the largest radiance (docs/physics.md §5):
+// (rho_max delta + r) / (1 - rho_max s_max), delta the form factors' row error bound, r the solve's residual.
+// Visibility (a ray estimate) is not part of the bound; `visibility_estimated` says whether it played a role.
+struct ErrorBound {
+  double total = INFINITY, form_factors = 0, solve = 0;
+  bool visibility_estimated = false;
+  bool exists = false;  // false when rho_max s_max >= 1
+};
+
+ErrorBound error_bound(const Run& r) {
+  ErrorBound b;
+  if (!r.ff || !r.solution || !r.scene) return b;
+  double rho_max = 0;
+  for (int p = 0; p < r.scene->patches(); ++p) rho_max = std::max(rho_max, r.scene->reflectance(p).maxCoeff());
+  const formfactor::Stats& s = *r.ff;
+  // Integration: each of a row's at most N - 1 computed entries is within `tolerance` (fixed rules: no bound).
+  b.form_factors = s.rule == "adaptive" ? s.tolerance * std::max(0, s.patches - 1) : INFINITY;
+  for (const auto& c : r.solution->channels) b.solve = std::max(b.solve, c.residual_max);
+  b.visibility_estimated = s.rays_cast > 0;
+  const double denom = 1 - rho_max * std::max(1.0, s.row_sum_max);
+  b.exists = denom > 0 && std::isfinite(b.form_factors);
+  if (b.exists) b.total = (rho_max * b.form_factors + b.solve) / denom;
+  return b;
+}
+
+json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding>& findings) {
+  const mesh::Scene& scene = *r.scene;
   json j;
   j["version"] = LAMBERT_VERSION;
+  j["command"] = r.command;
   j["scene"] = scene.source;
   j["patches"] = scene.patches();
   j["input_faces"] = scene.input_faces;
   j["vertices"] = scene.mesh.n_vertices();
   j["materials"] = scene.materials.size();
-  j["warnings"] = report_json(scene.report);
+  j["warnings"] = scene.report;
+  j["output"] = r.options->output;
+  j["phases"] = phases_json(timer);
+  j["iterations"] = 0;
+  j["residual"] = 0.0;
+  if (r.ff) j["form_factors"] = *r.ff;
+  if (r.solution) {
+    j.update(json(*r.solution));
+    j["tolerance"] = r.options->solve.tolerance;
+  }
+  if (r.adaptive) {
+    json a = *r.adaptive;
+    a["budget"] = r.options->adaptive.max_patches;
+    a["tolerance"] = r.options->adaptive.tolerance;
+    j["adaptive"] = a;
+  }
+  if (r.entries_written >= 0) j["entries_written"] = r.entries_written;
+  json checks = json::object();
+  for (const Finding& f : findings) checks[f.key] = {{"value", f.value}, {"fatal", f.fatal}, {"message", f.message}};
+  j["findings"] = checks;
+  const ErrorBound b = error_bound(r);
+  if (r.solution)
+    j["error_bound"] = {{"exists", b.exists},
+                        {"relative_radiance", b.exists ? json(b.total) : json(nullptr)},
+                        {"form_factor_row", std::isfinite(b.form_factors) ? json(b.form_factors) : json(nullptr)},
+                        {"solve_residual", b.solve},
+                        {"visibility_estimated", b.visibility_estimated}};
   return j;
+}
+
+std::string ff_lines(const formfactor::Stats& s) {
+  return fmt::format(
+      "  pairs        {} ({} culled by orientation, {} proven unoccluded, {} ray-tested), rays {}\n"
+      "  form factors {} rule, tolerance {:.1e} per entry; row sum min/mean/max {:.6f} / {:.6f} / {:.6f}\n",
+      s.pairs_total, s.pairs_orientation_culled, s.pairs_shaft_culled, s.pairs_ray_tested, s.rays_cast, s.rule,
+      s.tolerance, s.row_sum_min, s.row_sum_mean, s.row_sum_max);
+}
+
+std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Finding>& findings,
+                    const std::string& detail) {
+  std::string s = fmt::format("lambert {} {}\n", r.command, r.options->scene) + scene_line(*r.scene);
+  if (r.ff) s += ff_lines(*r.ff);
+  s += detail;
+  if (r.solution) {
+    const solver::Solution& sol = *r.solution;
+    int iterations = 0;
+    double residual = 0;
+    for (const auto& c : sol.channels) {
+      iterations = std::max(iterations, c.iterations);
+      residual = std::max(residual, c.residual);
+    }
+    s += fmt::format("  solve        {}, {} channel(s), iterations {}, residual {:.2e}\n", solver::to_string(sol.method),
+                     sol.channels.size(), iterations, residual);
+    s += fmt::format("  energy       emitted {} W, absorbed {} W, escaped {} W\n", rgb_str(sol.emitted),
+                     rgb_str(sol.absorbed), rgb_str(sol.escaped));
+    const ErrorBound b = error_bound(r);
+    if (b.exists)
+      s += fmt::format("  error bound  |dL|/max L <= {:.1e} (form factors {:.1e} per row, solve residual {:.1e} max-norm){}\n",
+                       b.total, b.form_factors, b.solve,
+                       b.visibility_estimated ? "; visibility is a ray estimate, not bounded" : "");
+    else
+      s += "  error bound  none (fixed form-factor rule, or reflectance x row sum >= 1)\n";
+  }
+  for (const Finding& f : findings) s += fmt::format("  {}  {}\n", f.fatal ? "FAILED     " : "warning    ", f.message);
+  s += fmt::format("  phases       {}\n", phases_line(timer));
+  return s;
+}
+
+// Exit status of a run from its findings: 3 (with the reasons on stderr, nothing written) when a fatal one
+// exists, else 0.
+int verdict(const std::vector<Finding>& findings, const std::string& what) {
+  std::string why;
+  for (const Finding& f : findings)
+    if (f.fatal) why += (why.empty() ? "" : "; ") + f.message;
+  if (why.empty()) return 0;
+  std::fprintf(stderr, "lambert: error: %s cannot be trusted: %s; no output written\n", what.c_str(), why.c_str());
+  return 3;
 }
 
 }  // namespace
@@ -216,127 +332,74 @@ int run_formfactors(const CommonOptions& o) {
   progress.done();
   timer.start("aggregate");
   const auto entries = formfactor::aggregate_to_faces(F, scene.geometry, scene.face_id, scene.input_faces);
-  timer.start("write");
-  io::write_file_atomically(o.output, [&](std::ostream& os) {
-    std::string buf;
-    buf.reserve(1 << 20);
-    for (const auto& e : entries) {
-      fmt::format_to(std::back_inserter(buf), "{},{},{:.12g}\n", e.i, e.j, e.F);
-      if (buf.size() > (1 << 20) - 64) {
-        os.write(buf.data(), std::streamsize(buf.size()));
-        buf.clear();
+  timer.stop();
+  Run run{.command = "formfactors", .options = &o, .scene = &scene, .ff = &st};
+  const std::vector<Finding> findings = assess(run);
+  const int status = verdict(findings, "the form factors");
+  if (status == 0) {
+    run.entries_written = (long long)entries.size();
+    timer.start("write");
+    io::write_file_atomically(o.output, [&](std::ostream& os) {
+      std::string buf;
+      buf.reserve(1 << 20);
+      for (const auto& e : entries) {
+        fmt::format_to(std::back_inserter(buf), "{},{},{:.12g}\n", e.i, e.j, e.F);
+        if (buf.size() > (1 << 20) - 64) {
+          os.write(buf.data(), std::streamsize(buf.size()));
+          buf.clear();
+        }
       }
-    }
-    os.write(buf.data(), std::streamsize(buf.size()));
-  });
-  timer.stop();
-  if (!o.stats.empty()) {
-    json j = base_stats(scene);
-    j["phases"] = phases_json(timer);
-    j["form_factors"] = ff_json(st, f);
-    j["entries_written"] = entries.size();
-    j["iterations"] = 0;
-    j["residual"] = 0.0;
-    write_json(o.stats, j);
+      os.write(buf.data(), std::streamsize(buf.size()));
+    });
+    timer.stop();
+    if (!o.stats.empty()) write_json(o.stats, stats_json(run, timer, findings));
   }
   if (!o.quiet) {
-    std::string s = fmt::format("lambert formfactors {}\n", o.scene) + scene_line(scene) + ff_summary(st);
-    s += fmt::format("  phases       {}\n  output       {} ({} nonzero entries)\n", phases_line(timer), o.output, entries.size());
-    std::fputs(s.c_str(), stderr);
+    std::string out = summary(run, timer, findings, "");
+    if (status == 0) out += fmt::format("  output       {} ({} nonzero entries)\n", o.output, entries.size());
+    std::fputs(out.c_str(), stderr);
   }
-  if (st.entries_outside_unit > 0) {
-    std::fprintf(stderr, "lambert: error: %lld form factors outside [0, 1] (written unclamped; see --stats)\n",
-                 st.entries_outside_unit);
-    return 3;
-  }
-  return 0;
+  return status;
 }
 
-// What the two solve paths share: refuse a non-converged result, write the .vtu, stats and summary.
-// `extra` goes into the stats JSON, `detail` (form-factor or adaptive lines) into the summary.
-int finish_solve(const CommonOptions& o, const mesh::Scene& scene, const solver::Solution& sol,
-                 const solver::Options& so, PhaseTimer& timer, json extra, const std::string& detail) {
-  for (const auto& w : sol.warnings) say(o, "lambert: warning: " + w);
-  if (!sol.converged) {
-    std::string why;
-    for (size_t c = 0; c < sol.channels.size(); ++c)
-      why += fmt::format(" channel {}: {} after {} iterations, residual {:.3e};", c, sol.channels[c].stop,
-                         sol.channels[c].iterations, sol.channels[c].residual);
-    std::fprintf(stderr, "lambert: error: the solve did not reach the tolerance %g:%s no output written (try "
-                 "--method bicgstab or a larger --max-iterations)\n", so.tolerance, why.c_str());
-    return 3;
-  }
-  timer.start("write");
-  io::write_vtu(o.output, scene, sol.radiance, sol.irradiance, o.crease_deg);
-  timer.stop();
-
-  int max_iterations = 0;
-  double max_residual = 0;
-  json channels = json::array();
-  for (const auto& c : sol.channels) {
-    max_iterations = std::max(max_iterations, c.iterations);
-    max_residual = std::max(max_residual, c.residual);
-    channels.push_back({{"iterations", c.iterations}, {"matvecs", c.matvecs}, {"residual", c.residual}, {"stop", c.stop}});
-  }
-  if (!o.stats.empty()) {
-    json j = base_stats(scene);
-    j.update(extra);
-    j["output"] = o.output;
-    j["phases"] = phases_json(timer);
-    j["method"] = solver::to_string(sol.method);
-    j["tolerance"] = so.tolerance;
-    j["iterations"] = max_iterations;
-    j["residual"] = max_residual;
-    j["channels"] = channels;
-    j["solver_warnings"] = sol.warnings;
-    j["energy"] = {{"emitted_W", rgb_json(sol.emitted)},
-                   {"absorbed_W", rgb_json(sol.absorbed)},
-                   {"escaped_W", rgb_json(sol.escaped)},
-                   {"balance_residual", sol.energy_residual}};
-    write_json(o.stats, j);
+// What both solve paths share: refuse an untrustworthy result, write the .vtu, stats and summary.
+// `detail` (adaptive lines) goes into the summary.
+int finish_solve(const Run& run, PhaseTimer& timer, const std::string& detail) {
+  const CommonOptions& o = *run.options;
+  for (const auto& w : run.solution->warnings) say(o, "lambert: warning: " + w);
+  const std::vector<Finding> findings = assess(run);
+  const int status = verdict(findings, "the solution");
+  if (status == 0) {
+    timer.start("write");
+    io::write_vtu(o.output, *run.scene, run.solution->radiance, run.solution->irradiance, o.crease_deg);
+    timer.stop();
+    if (!o.stats.empty()) write_json(o.stats, stats_json(run, timer, findings));
   }
   if (!o.quiet) {
-    std::string s = fmt::format("lambert solve {}\n", o.scene) + scene_line(scene) + detail;
-    s += fmt::format("  solve        {}, {} channel(s), iterations {}, residual {:.2e}\n", solver::to_string(sol.method),
-                     sol.channels.size(), max_iterations, max_residual);
-    s += fmt::format("  energy       emitted {} W, absorbed {} W, escaped {} W, balance residual {:.1e}\n",
-                     rgb_str(sol.emitted), rgb_str(sol.absorbed), rgb_str(sol.escaped), sol.energy_residual);
-    s += fmt::format("  phases       {}\n  output       {}\n", phases_line(timer), o.output);
+    std::string s = summary(run, timer, findings, detail);
+    if (status == 0) s += fmt::format("  output       {}\n", o.output);
     std::fputs(s.c_str(), stderr);
   }
-  return 0;
+  return status;
 }
 
-// --adaptive-budget: solve coarse, split where the estimated error is (solver/adaptive.hpp), re-solve.
+// --adaptive-budget: solve coarse, split where the estimated error is (refine/adaptive.hpp), re-solve.
 int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseTimer& timer) {
   mesh::PolygonSoup soup = read_input(o, timer);
   timer.start("prepare");
   mesh::Report prep_report;
-  soup = mesh::prepare(soup, prepare_options(o), prep_report);
+  soup = mesh::prepare(soup, o.prepare, prep_report);
   timer.start("adaptive");
-  solver::AdaptiveOptions ao;
+  refine::AdaptiveOptions ao = o.adaptive;
   ao.max_patches = o.adaptive_budget;
-  ao.tolerance = o.adaptive_tolerance;
-  ao.max_rounds = o.adaptive_rounds;
   ao.ff = ff_options(o, nullptr);
   ao.solve = so;
-  solver::AdaptiveResult r = solver::solve_adaptive(soup, ao);
+  refine::AdaptiveResult r = refine::solve_adaptive(soup, ao);
   timer.stop();
   // The final scene's report covers validation; put the preparation's counts and warnings first.
   for (const auto& [k, v] : prep_report.counts) r.scene.report.counts[k] += v;
   r.scene.report.warnings.insert(r.scene.report.warnings.begin(), prep_report.warnings.begin(), prep_report.warnings.end());
   for (const auto& w : r.scene.report.warnings) say(o, "lambert: warning: " + w);
-  json extra;
-  json per_round = json::array();
-  for (const auto& rd : r.rounds)
-    per_round.push_back({{"patches", rd.patches}, {"pairs_total", rd.pairs_total}, {"pairs_reused", rd.pairs_reused},
-                         {"error_estimate", rd.error_estimate}, {"marked", rd.marked}, {"split", rd.split},
-                         {"seconds", {{"form_factors", rd.assemble_seconds}, {"solve", rd.solve_seconds},
-                                      {"indicators", rd.indicator_seconds}}}});
-  extra["adaptive"] = {{"patches_per_round", r.patches_per_round}, {"max_indicator", r.max_indicator},
-                       {"error_estimate", r.error_estimate}, {"rounds", per_round},
-                       {"stop", r.stop}, {"not_splittable", r.not_splittable}, {"budget", ao.max_patches},
-                       {"tolerance", ao.tolerance}};
   std::string rounds;
   for (int p : r.patches_per_round) rounds += (rounds.empty() ? "" : " -> ") + std::to_string(p);
   long long reused = 0, pairs = 0;
@@ -349,28 +412,26 @@ int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseT
       "form-factor pairs reused {:.0f}%\n",
       rounds, r.stop, r.error_estimate.empty() ? 0.0 : r.error_estimate.back(), ao.tolerance,
       pairs ? 100.0 * double(reused) / double(pairs) : 0.0);
-  return finish_solve(o, r.scene, r.solution, so, timer, extra, detail);
+  const formfactor::Stats* last = r.rounds.empty() ? nullptr : &r.rounds.back().ff;
+  Run run{.command = "solve", .options = &o, .scene = &r.scene, .ff = last, .solution = &r.solution, .adaptive = &r};
+  return finish_solve(run, timer, detail);
 }
 
 int run_solve(const CommonOptions& o) {
   PhaseTimer timer;
-  solver::Options so;
+  solver::Options so = o.solve;
   so.method = solver::parse_method(o.method);  // fail on a bad name before any work
-  so.tolerance = o.solve_tolerance;
-  if (o.max_iterations > 0) so.max_iterations = o.max_iterations;
   if (o.adaptive_budget > 0) return run_solve_adaptive(o, so, timer);
   mesh::Scene scene = load(o, timer);
 
   formfactor::Stats st;
   formfactor::DenseMatrixOperator F;
-  const formfactor::Options f = [&] {
+  {
     Progress progress("form factors", !o.quiet);
-    formfactor::Options opt = ff_options(o, &progress);
+    const formfactor::Options opt = ff_options(o, &progress);
     timer.start("form_factors");
     F = formfactor::assemble(scene.geometry, opt, &st);
-    opt.progress = nullptr;
-    return opt;
-  }();
+  }
 
   timer.start("solve");
   solver::Solution sol;
@@ -384,28 +445,22 @@ int run_solve(const CommonOptions& o) {
     so.progress = nullptr;
   }
   timer.stop();
-  json extra;
-  extra["form_factors"] = ff_json(st, f);
-  return finish_solve(o, scene, sol, so, timer, extra, ff_summary(st));
+  const Run run{.command = "solve", .options = &o, .scene = &scene, .ff = &st, .solution = &sol};
+  return finish_solve(run, timer, "");
 }
 
 int run_verify_sphere(const VerifyOptions& v, const CommonOptions&) {
-  solver::SphereCase c;
-  if (v.subdivisions >= 0) c.subdivisions = v.subdivisions;
-  if (v.rho >= 0) c.rho = v.rho;
-  c.emission = v.emission;
-  c.method = solver::parse_method(v.method);
-  const solver::VerifyReport r = solver::verify_sphere(c);
+  verify::SphereCase c = v.sphere;
+  c.solve.method = solver::parse_method(v.method);
+  const verify::VerifyReport r = verify::verify_sphere(c);
   std::fputs(r.table.c_str(), stdout);
   return r.passed ? 0 : 4;
 }
 
 int run_verify_furnace(const VerifyOptions& v, const CommonOptions&) {
-  solver::FurnaceCase c;
-  if (v.divisions > 0) c.divisions = v.divisions;
-  if (v.rho >= 0) c.rho = v.rho;
-  c.method = solver::parse_method(v.method);
-  const solver::VerifyReport r = solver::verify_furnace(c);
+  verify::FurnaceCase c = v.furnace;
+  c.solve.method = solver::parse_method(v.method);
+  const verify::VerifyReport r = verify::verify_furnace(c);
   std::fputs(r.table.c_str(), stdout);
   return r.passed ? 0 : 4;
 }

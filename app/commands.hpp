@@ -1,6 +1,15 @@
 #pragma once
 // The CLI's subcommands. Each returns the process exit status; bad input throws lambert::InputError.
+// Every default lives in the libraries' options structs below; the CLI binds its flags to their fields
+// (and shows those defaults in --help), so the CLI and the library never disagree.
 #include <string>
+
+#include "lambert/formfactor/assemble.hpp"
+#include "lambert/mesh/prepare.hpp"
+#include "lambert/mesh/scene.hpp"
+#include "lambert/refine/adaptive.hpp"
+#include "lambert/solver/solve.hpp"
+#include "lambert/verify/verify.hpp"
 
 namespace lambert::app {
 
@@ -8,31 +17,23 @@ struct CommonOptions {
   std::string scene, materials, output, stats;
   int threads = 0;  // 0 = all cores
   bool quiet = false;
-  bool no_repair = false;  // skip mesh::prepare's repairs (detection still runs)
-  double max_edge = 0;     // m; 0 = no refinement
-  std::string orient = "visibility";  // mesh::parse_orientation: file | consistent | visibility
-  // form factors (0 = module default)
-  bool no_visibility = false;
-  double ff_tolerance = 0;
+  bool no_repair = false;      // --no-repair: prepare.repair = false (detection still runs)
+  std::string orient = "visibility";  // --orient: prepare.orient = mesh::parse_orientation(orient)
+  bool no_visibility = false;  // --no-visibility: ff.visibility = false
   std::string ff_rule = "adaptive";  // formfactor::parse_rule: adaptive | point | gauss1..gauss8
-  int rays_per_pair = 0;
-  // solve
-  std::string method = "auto";
-  double solve_tolerance = 1e-8;
-  int max_iterations = 0;
-  double crease_deg = 30.0;
-  // adaptive refinement (0 = off)
-  int adaptive_budget = 0;
-  double adaptive_tolerance = 0.01;  // E (estimated relative L2 error); 0.01 lets the budget decide
-  int adaptive_rounds = 12;          // each round splits ~half the error: 12 rounds reach budgets of ~10^4
+  std::string method = "auto";       // solver::parse_method
+  double crease_deg = mesh::VertexSplit::kDefaultCreaseDeg;
+  int adaptive_budget = 0;           // 0 = no adaptive refinement; else adaptive.max_patches
+  mesh::PrepareOptions prepare;      // --max-edge
+  formfactor::Options ff;            // --ff-tolerance / --tolerance (formfactors), --rays
+  solver::Options solve;             // --tolerance (solve), --max-iterations
+  refine::AdaptiveOptions adaptive;  // --adaptive-tol, --adaptive-rounds
 };
 
 struct VerifyOptions {
-  int subdivisions = -1;  // -1 = solver's default
-  int divisions = -1;
-  double rho = -1;
-  std::string emission = "uniform";
-  std::string method = "auto";
+  verify::SphereCase sphere;
+  verify::FurnaceCase furnace;
+  std::string method = "auto";  // solver::parse_method, for both cases
 };
 
 int run_solve(const CommonOptions& o);

@@ -35,10 +35,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.fallthrough(false);
 
-  app::CommonOptions common;
-  common.ff_tolerance = formfactor::Options{}.tolerance;
-  common.rays_per_pair = formfactor::Options{}.rays_per_pair;
-  common.max_iterations = solver::Options{}.max_iterations;
+  app::CommonOptions common;  // every default comes from the libraries' options structs (commands.hpp)
   auto add_common = [&](CLI::App* sub, bool with_output) {
     sub->add_option("scene", common.scene, "Scene file: .obj (+ .mtl), .ply, .off or .stl (binary or ASCII; other extensions by content)")->required()->check(CLI::ExistingFile);
     sub->add_option("--materials", common.materials,
@@ -57,14 +54,14 @@ int main(int argc, char** argv) {
                     "of the scene sees its back)")
         ->check(CLI::IsMember({"file", "consistent", "visibility"}))
         ->capture_default_str();
-    sub->add_option("--max-edge", common.max_edge,
+    sub->add_option("--max-edge", common.prepare.max_edge,
                     "Refine: split every edge longer than this (metres) so no patch edge exceeds it; 0 = off")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
   };
   auto add_formfactor = [&](CLI::App* sub, const char* tolerance_flag) {
     sub->add_flag("--no-visibility", common.no_visibility, "Ignore occlusion (every pair sees each other fully)");
-    sub->add_option(tolerance_flag, common.ff_tolerance,
+    sub->add_option(tolerance_flag, common.ff.tolerance,
                     "Absolute error bound on each unoccluded form factor F_ij")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
@@ -75,7 +72,7 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"adaptive", "point", "gauss1", "gauss2", "gauss3", "gauss4", "gauss5", "gauss6",
                                "gauss7", "gauss8"}))
         ->capture_default_str();
-    sub->add_option("--rays", common.rays_per_pair, "Visibility rays per pair that may be partially occluded")
+    sub->add_option("--rays", common.ff.rays_per_pair, "Visibility rays per pair that may be partially occluded")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
   };
@@ -86,10 +83,10 @@ int main(int argc, char** argv) {
   solve->add_option("-o,--output", common.output, "Output file (.vtu)")->required();
   add_formfactor(solve, "--ff-tolerance");
   solve->add_option("--method", common.method, "Solver: auto, jacobi, gauss-seidel, bicgstab, gmres")->capture_default_str();
-  solve->add_option("--tolerance", common.solve_tolerance, "Relative residual at which the solve stops")
+  solve->add_option("--tolerance", common.solve.tolerance, "Relative residual at which the solve stops")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  solve->add_option("--max-iterations", common.max_iterations, "Iteration limit per channel")
+  solve->add_option("--max-iterations", common.solve.max_iterations, "Iteration limit per channel")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   solve->add_option("--crease", common.crease_deg,
@@ -103,11 +100,11 @@ int main(int argc, char** argv) {
                     "0 = off")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  solve->add_option("--adaptive-tol", common.adaptive_tolerance,
+  solve->add_option("--adaptive-tol", common.adaptive.tolerance,
                     "Stop refining when the estimated relative L2 error of the radiance is at most this")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  solve->add_option("--adaptive-rounds", common.adaptive_rounds, "Refinement rounds at most (solves = rounds + 1)")
+  solve->add_option("--adaptive-rounds", common.adaptive.max_rounds, "Refinement rounds at most (solves = rounds + 1)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
 
@@ -126,15 +123,21 @@ int main(int argc, char** argv) {
   verify->require_subcommand(1);
   app::VerifyOptions vo;
   auto* sphere = verify->add_subcommand("sphere", "Closed icosphere with inward normals: exact answer E0/(1-rho), or the continuum formula");
-  sphere->add_option("--subdivisions", vo.subdivisions, "Icosphere subdivision level K (20*4^K triangles)")->check(CLI::Range(0, 6));
-  sphere->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
-  sphere->add_option("--emission", vo.emission, "uniform | cap | linear")->check(CLI::IsMember({"uniform", "cap", "linear"}));
-  sphere->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres");
+  sphere->add_option("--subdivisions", vo.sphere.subdivisions, "Icosphere subdivision level K (20*4^K triangles)")
+      ->check(CLI::Range(0, 6))
+      ->capture_default_str();
+  sphere->add_option("--rho", vo.sphere.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999))->capture_default_str();
+  sphere->add_option("--emission", vo.sphere.emission, "uniform | cap | linear")
+      ->check(CLI::IsMember({"uniform", "cap", "linear"}))
+      ->capture_default_str();
+  sphere->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres")->capture_default_str();
   sphere->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
   auto* furnace = verify->add_subcommand("furnace", "Closed room with an occluding block, uniform E0 and rho: exact answer E0/(1-rho)");
-  furnace->add_option("--divisions", vo.divisions, "Quads per room face edge")->check(CLI::Range(1, 64));
-  furnace->add_option("--rho", vo.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999));
-  furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres");
+  furnace->add_option("--divisions", vo.furnace.divisions, "Quads per room face edge")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  furnace->add_option("--rho", vo.furnace.rho, "Reflectance in [0,1)")->check(CLI::Range(0.0, 0.999999999))->capture_default_str();
+  furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres")->capture_default_str();
   furnace->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(CLI::PositiveNumber);
 
   // study
@@ -153,6 +156,9 @@ int main(int argc, char** argv) {
     return app.exit(e);
   }
 
+  common.prepare.repair = !common.no_repair;
+  common.prepare.orient = mesh::parse_orientation(common.orient);
+
   std::optional<tbb::global_control> threads;
   if (common.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(common.threads));
 
@@ -163,6 +169,9 @@ int main(int argc, char** argv) {
     if (sphere->parsed()) return app::run_verify_sphere(vo, common);
     if (furnace->parsed()) return app::run_verify_furnace(vo, common);
     if (study->parsed()) return app::run_study(so);
+  } catch (const InternalError& e) {
+    std::fprintf(stderr, "lambert: internal error: %s\n", e.what());
+    return 2;
   } catch (const InputError& e) {
     std::fprintf(stderr, "lambert: error: %s\n", e.what());
     return 1;

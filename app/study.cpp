@@ -24,7 +24,7 @@
 #include "lambert/io/atomic_file.hpp"
 #include "lambert/mesh/shapes.hpp"
 #include "lambert/solver/solve.hpp"
-#include "lambert/solver/verify.hpp"
+#include "lambert/verify/verify.hpp"
 
 namespace lambert::app {
 namespace {
@@ -154,8 +154,8 @@ void Study::solve_row(Row r, const mesh::PatchGeometry& g, const Assembly& a, co
     r.matvecs = std::max(r.matvecs, c.matvecs);
     r.residual = std::max(r.residual, c.residual);
   }
-  solver::VerifyReport e;
-  solver::relative_error(s.radiance.col(0), exact, g.area, e);
+  verify::VerifyReport e;
+  verify::relative_error(s.radiance.col(0), exact, g.area, e);
   r.max_err = e.max_rel_error;
   r.mean_err = e.mean_rel_error;
   r.rms_err = e.rms_rel_error;
@@ -174,14 +174,14 @@ void Study::sphere_convergence() {
   const std::vector<Knob> knobs =
       o_.quick ? std::vector<Knob>{kPoint, kGauss1, kAdaptive8} : std::vector<Knob>{kPoint, kGauss1, kGauss2, kAdaptive4, kAdaptive8};
   for (int K = 0; K <= kmax; ++K) {
-    solver::SphereCase c;
+    verify::SphereCase c;
     c.subdivisions = K;
     c.emission = "linear";
     c.rho = 0.9;
-    const mesh::PatchGeometry g = solver::sphere_geometry(c);
+    const mesh::PatchGeometry g = verify::sphere_geometry(c);
     ColorField rho, Le;
-    solver::sphere_fields(c, g, rho, Le);
-    const Eigen::VectorXd exact = solver::sphere_exact(c, g);
+    verify::sphere_fields(c, g, rho, Le);
+    const Eigen::VectorXd exact = verify::sphere_exact(c, g);
     for (const Knob& k : knobs) {
       const Assembly a = assemble(g, k, 16);
       Row r{.case_name = "sphere_linear", .variant = fmt::format("K={}", K), .level = double(K), .h = mean_size(g),
@@ -198,16 +198,16 @@ void Study::sphere_form_factors() {
                                            : std::vector<Knob>{kPoint, kGauss1, kGauss2, kGauss4, kAdaptive4,
                                                                kAdaptive6, kAdaptive8, kAdaptive10};
   for (int K : levels) {
-    solver::SphereCase c;
+    verify::SphereCase c;
     c.subdivisions = K;
-    const mesh::PatchGeometry g = solver::sphere_geometry(c);
+    const mesh::PatchGeometry g = verify::sphere_geometry(c);
     for (const Knob& k : knobs) {
       const Assembly a = assemble(g, k, 16);
       for (double rho : {0.9, 0.99, 0.999}) {
         c.rho = rho;
         ColorField R, Le;
-        solver::sphere_fields(c, g, R, Le);
-        const Eigen::VectorXd exact = solver::sphere_exact(c, g);
+        verify::sphere_fields(c, g, R, Le);
+        const Eigen::VectorXd exact = verify::sphere_exact(c, g);
         Row r{.case_name = "sphere_uniform", .variant = fmt::format("K={}", K), .level = double(K),
               .h = mean_size(g), .rho = rho, .knob = k};
         solve_row(r, g, a, R, Le, exact, solver::Method::GMRES, 1e-12);
@@ -220,10 +220,10 @@ void Study::sphere_form_factors() {
 // and block lit by its ceiling only (on the sphere every method converges in a few steps, its kernel being
 // of rank one). Errors are against the same discrete problem solved to 1e-13: the solver's error alone.
 void Study::solver_methods() {
-  solver::FurnaceCase c;
+  verify::FurnaceCase c;
   c.divisions = o_.quick ? 4 : 8;
   c.block_divisions = c.divisions / 2;
-  const mesh::PatchGeometry g = solver::furnace_geometry(c);
+  const mesh::PatchGeometry g = verify::furnace_geometry(c);
   const Assembly a = assemble(g, kAdaptive8, 16);
   const std::vector<double> rhos = o_.quick ? std::vector<double>{0.5, 0.9, 0.99} : std::vector<double>{0.5, 0.9, 0.99, 0.999};
   const std::vector<double> tols = o_.quick ? std::vector<double>{1e-4, 1e-8} : std::vector<double>{1e-4, 1e-6, 1e-8, 1e-10};
@@ -251,8 +251,8 @@ void Study::solver_methods() {
 void Study::furnace() {
   const std::vector<int> divisions = o_.quick ? std::vector<int>{4} : std::vector<int>{4, 8, 12};
   const std::vector<int> rays = o_.quick ? std::vector<int>{4, 16} : std::vector<int>{1, 4, 16, 64, 256};
-  auto one = [&](solver::FurnaceCase c, const Knob& k, int R) {
-    const mesh::PatchGeometry g = solver::furnace_geometry(c);
+  auto one = [&](verify::FurnaceCase c, const Knob& k, int R) {
+    const mesh::PatchGeometry g = verify::furnace_geometry(c);
     const Assembly a = assemble(g, k, R);
     for (double rho : {0.5, 0.9, 0.99}) {
       const ColorField Rf = ColorField::Constant(g.size(), 3, rho), Le = ColorField::Constant(g.size(), 3, 1.0);
@@ -264,14 +264,14 @@ void Study::furnace() {
   };
   for (int n : divisions)
     for (int R : rays) {
-      solver::FurnaceCase c;
+      verify::FurnaceCase c;
       c.divisions = n;
       c.block_divisions = std::max(1, n / 2);
       one(c, kAdaptive8, R);
     }
   if (!o_.quick)
     for (const Knob& k : {kPoint, kGauss1, kGauss2, kAdaptive4}) {
-      solver::FurnaceCase c;
+      verify::FurnaceCase c;
       c.divisions = 8;
       c.block_divisions = 4;
       one(c, k, 16);
@@ -282,12 +282,12 @@ void Study::furnace() {
 void Study::scale() {
   const std::vector<Knob> knobs =
       o_.quick ? std::vector<Knob>{kPoint, kAdaptive8} : std::vector<Knob>{kPoint, kGauss1, kGauss2, kAdaptive4, kAdaptive8};
-  solver::FurnaceCase c;
+  verify::FurnaceCase c;
   c.divisions = 4;
   c.block_divisions = 2;
   c.size = 1e3;
   c.speck = 1e-3;
-  const mesh::PatchGeometry g = solver::furnace_geometry(c);
+  const mesh::PatchGeometry g = verify::furnace_geometry(c);
   for (const Knob& k : knobs) {
     const Assembly a = assemble(g, k, 16);
     for (double rho : {0.9, 0.99, 0.999}) {

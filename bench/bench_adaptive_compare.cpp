@@ -6,7 +6,7 @@
 //
 // Reference: mesh::prepare with max_edge = EDGE (a fine uniform mesh), form factors, solve.
 // Uniform runs: the same with max_edge = E (time = prepare + form factors + solve).
-// Adaptive runs: solver::solve_adaptive from the prepared (unrefined) input with that tolerance, patch
+// Adaptive runs: refine::solve_adaptive from the prepared (unrefined) input with that tolerance, patch
 // budget and round limit (time = all rounds). --no-reuse-too repeats each adaptive run without
 // reusing form factors between rounds, to measure what reuse saves.
 // Error of a run against the reference: reflected radiance R = L - Le (all three channels), sampled at
@@ -27,7 +27,7 @@
 #include "lambert/formfactor/assemble.hpp"
 #include "lambert/io/readers.hpp"
 #include "lambert/mesh/prepare.hpp"
-#include "lambert/solver/adaptive.hpp"
+#include "lambert/refine/adaptive.hpp"
 #include "lambert/solver/solve.hpp"
 
 using namespace lambert;
@@ -43,7 +43,7 @@ struct Run {
   ColorField radiance;
   double seconds = 0, ff_seconds = 0;
   std::string rounds;  // adaptive: patches per round
-  std::vector<solver::AdaptiveRound> round_info;
+  std::vector<refine::AdaptiveRound> round_info;
 };
 
 Run uniform(const mesh::PolygonSoup& soup, double edge) {
@@ -73,12 +73,12 @@ Run adaptive(const mesh::PolygonSoup& soup, double tol, int budget, int rounds, 
   const auto t0 = Clock::now();
   mesh::Report rep;
   const mesh::PolygonSoup prepared = mesh::prepare(soup, mesh::PrepareOptions{}, rep);
-  solver::AdaptiveOptions o;
+  refine::AdaptiveOptions o;
   o.tolerance = tol;
   o.max_patches = budget;
   o.max_rounds = rounds;
   o.reuse = reuse;
-  auto res = solver::solve_adaptive(prepared, o);
+  auto res = refine::solve_adaptive(prepared, o);
   r.seconds = since(t0);
   for (const auto& ri : res.rounds) {
     r.ff_seconds += ri.assemble_seconds;

@@ -9,7 +9,8 @@
 
 #include "lambert/formfactor/kernel.hpp"
 #include "lambert/mesh/shapes.hpp"
-#include "lambert/solver/adaptive.hpp"
+#include "lambert/refine/adaptive.hpp"
+#include "lambert/refine/indicators.hpp"
 
 using namespace lambert;
 
@@ -128,11 +129,11 @@ TEST(Adaptive, BeatsUniformRefinementAtEqualPatchCount) {
   const Uniform uni = solve_uniform(n);
   const Errors eu = floor_errors(uni.scene, uni.solution.radiance);
 
-  solver::AdaptiveOptions o;
+  refine::AdaptiveOptions o;
   o.max_patches = uni.scene.patches();  // n^2 + 1
   o.tolerance = 0.01;                   // small enough that the budget, not the tolerance, stops it
   o.max_rounds = 16;
-  const solver::AdaptiveResult r = solver::solve_adaptive(floor_scene(4), o);
+  const refine::AdaptiveResult r = refine::solve_adaptive(floor_scene(4), o);
   const Errors ea = floor_errors(r.scene, r.solution.radiance);
 
   std::string rounds;
@@ -154,10 +155,10 @@ TEST(Adaptive, BeatsUniformRefinementAtEqualPatchCount) {
 
 // Nothing above tolerance: one solve, no refinement, and the result is the plain solve.
 TEST(Adaptive, StopsWithoutRefiningWhenTheEstimateIsBelowTolerance) {
-  solver::AdaptiveOptions o;
+  refine::AdaptiveOptions o;
   o.max_patches = 1000;
   o.tolerance = 1e9;  // far above any estimate
-  const auto first = solver::solve_adaptive(floor_scene(4), o);
+  const auto first = refine::solve_adaptive(floor_scene(4), o);
   ASSERT_EQ(first.patches_per_round.size(), 1u);
   EXPECT_EQ(first.patches_per_round[0], 17);
   EXPECT_EQ(first.stop, "converged");
@@ -168,20 +169,20 @@ TEST(Adaptive, StopsWithoutRefiningWhenTheEstimateIsBelowTolerance) {
   const double E = first.error_estimate[0];
   ASSERT_GT(E, 0.0);
   o.tolerance = 1.001 * E;
-  EXPECT_EQ(solver::solve_adaptive(floor_scene(4), o).patches_per_round.size(), 1u);
+  EXPECT_EQ(refine::solve_adaptive(floor_scene(4), o).patches_per_round.size(), 1u);
   o.tolerance = 0.999 * E;
   o.max_rounds = 1;
-  EXPECT_EQ(solver::solve_adaptive(floor_scene(4), o).patches_per_round.size(), 2u);
+  EXPECT_EQ(refine::solve_adaptive(floor_scene(4), o).patches_per_round.size(), 2u);
 }
 
 // Budget respected, total area kept, faces keep their input origin, and the final radiance (solved
 // from the previous round's guess) equals a fresh solve of the final scene.
 TEST(Adaptive, RespectsBudgetKeepsAreaAndReuseDoesNotBiasTheSolution) {
-  solver::AdaptiveOptions o;
+  refine::AdaptiveOptions o;
   o.max_patches = 100;
   o.tolerance = 0.01;
   o.max_rounds = 10;
-  const auto r = solver::solve_adaptive(floor_scene(4), o);
+  const auto r = refine::solve_adaptive(floor_scene(4), o);
   EXPECT_LE(r.scene.patches(), 100);
   EXPECT_GT(r.scene.patches(), 17);
   EXPECT_EQ(r.stop, "budget");
@@ -217,11 +218,11 @@ TEST(Adaptive, SplitsTrianglesAndFindsNeighboursAcrossHangingNodes) {
     faces.push_back(b);
   }
   s.faces = faces;
-  solver::AdaptiveOptions o;
+  refine::AdaptiveOptions o;
   o.max_patches = 60;
   o.tolerance = 0.01;
   o.max_rounds = 3;
-  const auto r = solver::solve_adaptive(s, o);
+  const auto r = refine::solve_adaptive(s, o);
   ASSERT_GE(r.patches_per_round.size(), 2u);
   EXPECT_EQ(r.patches_per_round[0], 9);
   EXPECT_GT(r.scene.patches(), 9);
@@ -235,7 +236,7 @@ TEST(Adaptive, SplitsTrianglesAndFindsNeighboursAcrossHangingNodes) {
   EXPECT_NEAR(floor_area, 1.0, 1e-12);
   // Every floor patch touches another floor patch along an edge, so with a non-uniform L every one
   // has a neighbour; an indicator of 0 would mean a missed neighbour (L differs between any two).
-  const auto ind = solver::jump_indicator(r.scene, r.solution.radiance);
+  const auto ind = refine::jump_indicator(r.scene, r.solution.radiance);
   for (int p = 0; p < r.scene.patches(); ++p) {
     if (r.scene.material[p] == 1) {
       EXPECT_GT(ind[p], 0.0) << "patch " << p;
@@ -287,13 +288,13 @@ mesh::PolygonSoup lit_room_with_block() {
 TEST(Adaptive, ReusedFormFactorsGiveTheSameSolution) {
   for (bool visibility : {false, true}) {
     SCOPED_TRACE(visibility ? "with visibility" : "without visibility");
-    solver::AdaptiveOptions o;
+    refine::AdaptiveOptions o;
     o.max_patches = 400;
     o.tolerance = 0.02;
     o.max_rounds = 3;
     o.ff.visibility = visibility;
     o.ff.rays_per_pair = 64;  // less ray noise between reused and fresh entries (see the bound below)
-    const auto r = solver::solve_adaptive(lit_room_with_block(), o);
+    const auto r = refine::solve_adaptive(lit_room_with_block(), o);
     ASSERT_EQ(r.rounds.size(), 4u);
     EXPECT_EQ(r.rounds[0].pairs_reused, 0);
     for (size_t k = 1; k < r.rounds.size(); ++k) {
@@ -351,7 +352,7 @@ TEST(Adaptive, DirectIndicatorMarksPatchesStraddlingAShadowEdge) {
   const mesh::Scene scene = mesh::build_scene(soup);
   const auto F = formfactor::assemble(scene.geometry);
   const auto sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field());
-  const auto ind = solver::direct_indicator(scene, sol.radiance);
+  const auto ind = refine::direct_indicator(scene, sol.radiance);
   for (int p = 0; p < 25; ++p) {
     const int i = p / 5, j = p % 5;  // grid order: row by row
     const bool centre = i == 2 && j == 2, ring = !centre && i >= 1 && i <= 3 && j >= 1 && j <= 3;
@@ -371,11 +372,11 @@ TEST(Adaptive, DirectIndicatorMarksPatchesStraddlingAShadowEdge) {
 // Split midpoints are welded: after several rounds no two vertices of the soup share a position (so
 // build_scene reports no duplicate vertices), and faces split on both sides of an edge share its midpoint.
 TEST(Adaptive, SplitCornersAreWelded) {
-  solver::AdaptiveOptions o;
+  refine::AdaptiveOptions o;
   o.max_patches = 300;
   o.tolerance = 0.01;
   o.max_rounds = 5;
-  const auto r = solver::solve_adaptive(lit_room_with_block(), o);
+  const auto r = refine::solve_adaptive(lit_room_with_block(), o);
   ASSERT_GT(r.patches_per_round.size(), 2u);
   std::map<std::array<double, 3>, int> seen;
   for (size_t v = 0; v < r.soup.positions.size(); ++v) {
@@ -388,13 +389,13 @@ TEST(Adaptive, SplitCornersAreWelded) {
 
 TEST(Adaptive, RejectsInvalidOptions) {
   const auto s = floor_scene(2);
-  solver::AdaptiveOptions o;
+  refine::AdaptiveOptions o;
   o.tolerance = 0;
-  EXPECT_THROW(solver::solve_adaptive(s, o), InputError);
+  EXPECT_THROW(refine::solve_adaptive(s, o), InputError);
   o.tolerance = 0.1;
   o.max_rounds = -1;
-  EXPECT_THROW(solver::solve_adaptive(s, o), InputError);
+  EXPECT_THROW(refine::solve_adaptive(s, o), InputError);
   o.max_rounds = 2;
   o.max_patches = 3;  // the input already has 5 patches
-  EXPECT_THROW(solver::solve_adaptive(s, o), InputError);
+  EXPECT_THROW(refine::solve_adaptive(s, o), InputError);
 }

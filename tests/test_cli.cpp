@@ -19,49 +19,15 @@
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
+#include "cli_util.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int status;
-  std::string output;  // stdout and stderr together
-};
-
-CliRun run(const std::string& args) {
-  const std::string cmd = std::string(LAMBERT_BINARY) + " " + args + " 2>&1";
-  CliRun r{0, {}};
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return {-1, "popen failed"};
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int st = pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
-
-class Cli : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::random_device rd;
-    dir = fs::temp_directory_path() / ("lambert_cli_" + std::to_string(rd()));
-    fs::create_directories(dir);
-  }
-  void TearDown() override { fs::remove_all(dir); }
-  std::string path(const std::string& name) const { return (dir / name).string(); }
-  std::string write(const std::string& name, const std::string& text) const {
-    std::ofstream(path(name)) << text;
-    return path(name);
-  }
-  // Files in dir other than the given ones (temporaries left behind, partial outputs).
-  std::vector<std::string> files() const {
-    std::vector<std::string> v;
-    for (auto& e : fs::directory_iterator(dir)) v.push_back(e.path().filename().string());
-    return v;
-  }
-  fs::path dir;
-};
+using lambert::test::Cli;
+using lambert::test::CliRun;
+using lambert::test::run;
 
 const std::string kExamples = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
 

@@ -265,7 +265,7 @@ TEST(FormFactorAssembly, AggregateToFacesMatchesUnsplitFaces) {
   EXPECT_NEAR(entries[0].F, 0.1998248957, 1e-7);
   EXPECT_EQ(entries[1].i, 1);
   EXPECT_NEAR(entries[1].F, 0.1998248957, 1e-7);
-  EXPECT_THROW(aggregate_to_faces(assemble(g), g, std::vector<int>(13, 2), 2), InputError);
+  EXPECT_THROW(aggregate_to_faces(assemble(g), g, std::vector<int>(13, 2), 2), InternalError) << "a face id outside [0, input_faces) is a caller bug, not bad input";
 }
 
 TEST(FormFactorAssembly, ProgressIsReportedAndThreadsRespected) {

@@ -309,3 +309,98 @@ TEST(RealModelsTwoSided, FacesSeenFromBehindAreCounted) {
     EXPECT_EQ(count(r, "faces_reoriented"), file ? 0 : 1) << int(mode) << all_warnings(r);
   }
 }
+
+// ---- contact lines and crossings imprinted ---------------------------------------------------------
+
+namespace {
+
+std::vector<Vec3> quad(Vec3 a, Vec3 b, Vec3 c, Vec3 d) { return {a, b, c, d}; }
+
+// Storey modelled as architects do: one floor polygon (y = 0, up) and one ceiling polygon (y = 2.5,
+// down) under two rooms A (x < 2) and B (x > 2.2), outer walls one polygon per side running past both
+// rooms (inward), and a closed wall block [2, 2.2] x [0, 2.5] x [0, 2] (outward) standing on the floor
+// and touching the ceiling and both long walls. A lamp quad hangs in A (y = 2.4, facing down).
+PolygonSoup storey_with_wall() {
+  const double X = 4.2, H = 2.5, Z = 2;
+  shapes::Polygons p;
+  p.push_back(quad({0, 0, 0}, {0, 0, Z}, {X, 0, Z}, {X, 0, 0}));  // floor, +y
+  p.push_back(quad({0, H, 0}, {X, H, 0}, {X, H, Z}, {0, H, Z}));  // ceiling, -y
+  p.push_back(quad({0, 0, 0}, {0, H, 0}, {0, H, Z}, {0, 0, Z}));  // x = 0, +x
+  p.push_back(quad({X, 0, 0}, {X, 0, Z}, {X, H, Z}, {X, H, 0}));  // x = X, -x
+  p.push_back(quad({0, 0, 0}, {X, 0, 0}, {X, H, 0}, {0, H, 0}));  // z = 0, +z
+  p.push_back(quad({0, 0, Z}, {0, H, Z}, {X, H, Z}, {X, 0, Z}));  // z = Z, -z
+  for (const auto& f : shapes::box(Vec3(2, 0, 0), Vec3(2.2, H, Z), 1, false)) p.push_back(f);  // faces 6-11
+  p.push_back(quad({0.8, 2.4, 0.8}, {1.2, 2.4, 0.8}, {1.2, 2.4, 1.2}, {0.8, 2.4, 1.2}));     // lamp, -y
+  PolygonSoup s = soup_from(p);
+  const int white = add_material(s, "white", 0.7, 0);
+  const int lamp = add_material(s, "lamp", 0.5, 20);
+  for (auto& f : s.faces) f.material = white;
+  s.faces.back().material = lamp;
+  return s;
+}
+
+}  // namespace
+
+TEST(RealModelsImprint, WallStandingOnSlabLeaksNoLight) {
+  const PolygonSoup s = storey_with_wall();
+  const Scene scene = prepare_and_build(s, {});
+  const Report& r = scene.report;
+  // The floor, the ceiling and the two long walls are split where the block touches them; the parts
+  // under / against the block, and the block's own bottom, top and ends, are hidden and removed.
+  EXPECT_EQ(count(r, "faces_imprinted"), 4) << all_warnings(r);
+  EXPECT_EQ(count(r, "hidden_fragments_removed"), 8) << all_warnings(r);
+  EXPECT_EQ(count(r, "self_intersections"), 0) << all_warnings(r);
+  for (int p = 0; p < scene.patches(); ++p) {  // no patch straddles the wall
+    double lo = 1e9, hi = -1e9;
+    for (const Vec3& v : scene.geometry.polygon(p)) lo = std::min(lo, v.x()), hi = std::max(hi, v.x());
+    EXPECT_FALSE(lo < 2 - 1e-9 && hi > 2.2 + 1e-9) << "patch " << p << " of input face " << scene.face_id[p];
+  }
+  const Eigen::VectorXd L = solve_grey(scene);
+  double lit_mean = 0, dark_max = 0;
+  int lit_n = 0;
+  for (int p = 0; p < scene.patches(); ++p) {
+    const double x = scene.geometry.centroid[p].x();
+    if (x < 2 && scene.face_id[p] != 12) lit_mean += L[p], ++lit_n;
+    if (x > 2.2 - 1e-9) dark_max = std::max(dark_max, std::abs(L[p]));
+  }
+  lit_mean /= lit_n;
+  // The bound: the shut room's largest radiance <= 1e-6 x the lit room's mean (before: 0.62).
+  EXPECT_LE(dark_max, 1e-6 * lit_mean) << "lit mean " << lit_mean;
+  EXPECT_GT(lit_mean, 0.1);
+}
+
+TEST(RealModelsImprint, FaceCrossingWallsGivesFormFactorsInUnitRangeAndRowSumsOfOne) {
+  // Closed room [0,2]^3 (one polygon per wall, inward, ceiling emitting) cut by a two-sided plate at
+  // y = 1 that runs through all four walls (x, z in [-0.5, 2.5]): two closed sub-rooms. Every F in
+  // [0, 1]; every patch inside the room has a row sum of 1 within 1e-6 (per-entry tolerance 1e-8 over
+  // ~20 entries; visibility here is all or nothing, so rays add no error).
+  shapes::Polygons p = shapes::box(Vec3::Zero(), Vec3::Constant(2), 1, true);
+  p.push_back(quad({-0.5, 1, -0.5}, {-0.5, 1, 2.5}, {2.5, 1, 2.5}, {2.5, 1, -0.5}));  // +y
+  PolygonSoup s = soup_from(p);
+  const int white = add_material(s, "white", 0.7, 0);
+  const int lamp = add_material(s, "lamp", 0.5, 1);
+  const int plate = add_material(s, "plate", 0.7, 0, true);
+  for (auto& f : s.faces) f.material = white;
+  s.faces[3].material = lamp;
+  s.faces[6].material = plate;
+  for (bool imprint : {true}) {
+    PrepareOptions o;
+    o.imprint = imprint;
+    const Scene scene = prepare_and_build(s, o);
+    formfactor::Stats st;
+    const auto F = formfactor::assemble(scene.geometry, {}, &st);
+    EXPECT_EQ(st.entries_outside_unit, 0) << all_warnings(scene.report);
+    const auto& M = F.matrix();
+    for (int i = 0; i < scene.patches(); ++i) {
+      const Vec3 c = scene.geometry.centroid[i];
+      const bool inside = (c.array() > 1e-9).all() && (c.array() < 2 - 1e-9).all();
+      double row = 0;
+      for (int j = 0; j < scene.patches(); ++j) {
+        EXPECT_TRUE(M(i, j) >= 0 && M(i, j) <= 1) << "F(" << i << ", " << j << ") = " << M(i, j);
+        row += M(i, j);
+      }
+      EXPECT_LE(row, 1 + 1e-6) << "patch " << i << " (input face " << scene.face_id[i] << ")";
+      if (inside) EXPECT_GE(row, 1 - 1e-6) << "patch " << i << " (input face " << scene.face_id[i] << ")";
+    }
+  }
+}

@@ -182,9 +182,10 @@ TEST(SolverHardCase, ReflectanceNearOneInOccludedRoom) {
 }  // namespace
 }  // namespace lambert::solver
 
-#include "lambert/solver/verify.hpp"
+#include "lambert/verify/verify.hpp"
 
 namespace lambert::solver {
+using namespace lambert::verify;
 namespace {
 
 // A 1 km furnace room with a 1 mm cube floating in it (the study's `scale` case) must solve like the 1 m
@@ -196,7 +197,7 @@ TEST(SolverHardCase, FurnaceSpanningMillimetreToKilometreSolvesLikeTheMetreRoom)
   unit.divisions = 4;
   unit.block_divisions = 2;
   unit.rho = 0.9;
-  unit.rays_per_pair = 16;
+  unit.ff.rays_per_pair = 16;
   FurnaceCase huge = unit;
   huge.size = 1e3;
   huge.speck = 1e-3;

@@ -12,9 +12,10 @@
 #include "lambert/mesh/geometry.hpp"
 #include "lambert/mesh/shapes.hpp"
 #include "lambert/solver/solve.hpp"
-#include "lambert/solver/verify.hpp"
+#include "lambert/verify/verify.hpp"
 
 namespace lambert::solver {
+using namespace lambert::verify;
 namespace {
 
 struct Enclosure {
@@ -117,7 +118,7 @@ TEST(SolverSphere, VaryingEmissionConvergesAtMeasuredRate) {
 
 // White furnace with an occluding block: error within the row-sum bound rho max|delta| / (1 - rho max s)
 // (plus 1e-8 for the solve: the solver adds nothing to the form factors' error) and within the case's
-// tolerance 5e-4 rho / (1 - rho) (visibility is ray-estimated; see verify.hpp).
+// fixed tolerance 5e-3 (visibility is ray-estimated with 256 rays; see verify.hpp).
 TEST(SolverFurnace, OccludedRoomMatchesClosedForm) {
   for (double rho : {0.9, 0.99}) {
     FurnaceCase c;
@@ -141,6 +142,40 @@ TEST(SolverVerify, DefaultsPassAndPrintTheirTolerance) {
   for (const char* phase : {"mesh", "form_factors", "solve", "total"}) {
     EXPECT_TRUE(s.seconds.count(phase)) << phase;
     EXPECT_TRUE(f.seconds.count(phase)) << phase;
+  }
+}
+
+// The pass threshold is a fixed number, not 5e-4 rho/(1 - rho) (50 % at rho = 0.999): the same threshold at
+// 0.9 and 0.999, and at 0.999 ray-estimated visibility on a coarse room is not accurate enough, so the case
+// fails (the defect is reported, not hidden by a threshold that grows with it).
+TEST(SolverVerify, FurnacePassThresholdDoesNotGrowWithReflectance) {
+  FurnaceCase c;
+  c.divisions = 4;
+  c.block_divisions = 2;
+  c.rho = 0.9;
+  const VerifyReport a = verify_furnace(c);
+  c.rho = 0.999;
+  const VerifyReport b = verify_furnace(c);
+  EXPECT_EQ(a.tolerance, b.tolerance) << a.table << b.table;
+  EXPECT_TRUE(a.passed) << a.table;
+  EXPECT_FALSE(b.passed) << "ray visibility at rho = 0.999 cannot meet a fixed threshold\n" << b.table;
+  EXPECT_TRUE(b.within_bound) << "the a-posteriori bound must still hold\n" << b.table;
+}
+
+// The a-posteriori bound (row sums and the max-norm residual, computed without the exact answer) must
+// contain the actual error, also when the solve stops early (loose tolerance: the residual term matters).
+TEST(SolverVerify, UniformSphereErrorStaysWithinItsAPosterioriBound) {
+  for (double solve_tol : {1e-3, 1e-6, 1e-10}) {
+    SphereCase c;
+    c.subdivisions = 2;
+    c.rho = 0.99;
+    c.solve.tolerance = solve_tol;
+    c.solve.method = Method::Jacobi;  // the slowest contraction: the iterate is far from converged at 1e-3
+    c.solve.max_iterations = 100000;
+    c.tolerance = 1;  // this test checks the bound, not the threshold
+    const VerifyReport r = verify_sphere(c);
+    EXPECT_TRUE(r.within_bound) << "solve tolerance " << solve_tol << "\n" << r.table;
+    EXPECT_GT(r.error_bound, 0) << r.table;
   }
 }
 

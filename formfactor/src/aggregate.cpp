@@ -9,13 +9,13 @@ namespace lambert::formfactor {
 std::vector<FaceEntry> aggregate_to_faces(const DenseMatrixOperator& F, const mesh::PatchGeometry& g,
                                           const std::vector<int>& face_id, int input_faces) {
   const int n = F.size();
-  if (int(face_id.size()) != n || g.size() != n)
-    throw InputError("aggregate_to_faces: face_id has " + std::to_string(face_id.size()) + " entries, geometry " +
-                     std::to_string(g.size()) + " patches, matrix " + std::to_string(n));
+  LAMBERT_CHECK(int(face_id.size()) == n && g.size() == n,
+                "aggregate_to_faces: face_id has " + std::to_string(face_id.size()) + " entries, geometry " +
+                    std::to_string(g.size()) + " patches, matrix " + std::to_string(n));
   for (int p = 0; p < n; ++p)
-    if (face_id[p] < 0 || face_id[p] >= input_faces)
-      throw InputError("aggregate_to_faces: patch " + std::to_string(p) + " has face id " + std::to_string(face_id[p]) +
-                       " outside [0, " + std::to_string(input_faces) + ")");
+    LAMBERT_CHECK(face_id[p] >= 0 && face_id[p] < input_faces,
+                  "aggregate_to_faces: patch " + std::to_string(p) + " has face id " + std::to_string(face_id[p]) +
+                      " outside [0, " + std::to_string(input_faces) + ")");
   const auto& M = F.matrix();
   std::vector<FaceEntry> out;
   // Identity map (one patch per face, in order): copy the nonzero entries directly.

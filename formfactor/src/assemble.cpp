@@ -519,6 +519,10 @@ DenseMatrixOperator Assembler::run() {
   const int n = g_.size();
   st_ = Stats{};
   st_.patches = n;
+  st_.rule = to_string(o_.rule, o_.order);
+  st_.tolerance = o_.tolerance;
+  st_.visibility = o_.visibility;
+  st_.rays_per_pair = o_.rays_per_pair;
   st_.pairs_total = (long long)n * (n - 1) / 2;
   if (!(o_.tolerance > 0) || !std::isfinite(o_.tolerance))
     throw InputError("form factors: tolerance must be a positive number (got " + std::to_string(o_.tolerance) + ")");

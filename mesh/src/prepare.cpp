@@ -291,6 +291,7 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
     weld(out, tol, report);
     clean_faces(out, report);
     orient(out, options.orient, report);
+    if (options.imprint) imprint(out, tol, report);
   }
   std::vector<char> usable(out.faces.size());
   for (size_t k = 0; k < out.faces.size(); ++k) usable[k] = usable_face(out, static_cast<int>(k));

@@ -44,6 +44,9 @@ double distance_to_boundary(const Vec3& p, const std::vector<Vec3>& poly);
 
 // Repair steps (see prepare.hpp for what each does and reports).
 void orient(PolygonSoup& s, Orientation mode, Report& report);
+// Contact lines and crossings imprinted, hidden fragments removed (prepare_imprint.cpp).
+//                                                      "faces_imprinted", "hidden_fragments_removed"
+void imprint(PolygonSoup& s, double tol, Report& report);
 // Last step, with or without repair: each face whose material is two-sided gets a back copy (reversed,
 // side 1, own vertex copies) right after it.                                      "two_sided_faces"
 void duplicate_two_sided(PolygonSoup& s, Report& report);

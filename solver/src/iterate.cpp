@@ -191,31 +191,31 @@ ChannelResult bicgstab(Product& F, const VectorXd& rho, const VectorXd& Le, Vect
     return out;
   }
   r_hat = r;
-  double rho_old = 1, alpha = 1, omega = 1;
+  double r0_dot_old = 1, alpha = 1, omega = 1;
   const double eps = std::numeric_limits<double>::epsilon();
   auto restart = [&] {
     r_hat = r;
     p.setZero();
     v.setZero();
-    rho_old = alpha = omega = 1;
+    r0_dot_old = alpha = omega = 1;
   };
   for (int k = 1;; ++k) {
-    double rho_new = r_hat.dot(r);
-    if (std::abs(rho_new) < eps * eps * r_hat.squaredNorm() * r.squaredNorm() || omega == 0) {
+    double r0_dot = r_hat.dot(r);
+    if (std::abs(r0_dot) < eps * eps * r_hat.squaredNorm() * r.squaredNorm() || omega == 0) {
       restart();  // r_hat nearly orthogonal to r: the Lanczos recurrence would break down
-      rho_new = r.squaredNorm();
+      r0_dot = r.squaredNorm();
     }
-    p = r + (rho_new / rho_old) * (alpha / omega) * (p - omega * v);
+    p = r + (r0_dot / r0_dot_old) * (alpha / omega) * (p - omega * v);
     A(p, v);
     const double rv = r_hat.dot(v);
-    alpha = rv != 0 ? rho_new / rv : 0;
+    alpha = rv != 0 ? r0_dot / rv : 0;
     s = r - alpha * v;
     A(s, t);
     const double tt = t.squaredNorm();
     omega = tt > 0 ? t.dot(s) / tt : 0;
     x += alpha * p + omega * s;
     r = s - omega * t;
-    rho_old = rho_new;
+    r0_dot_old = r0_dot;
 
     const double abs = r.norm();
     rel = abs / residual_scale(x, le_norm);

@@ -34,9 +34,8 @@ std::string describe(int patch, int channel) {
 }
 
 void check_field(const ColorField& field, int n, const char* what, bool reflectance) {
-  if (field.rows() != n)
-    throw InputError(std::string(what) + ": " + std::to_string(field.rows()) + " rows for " + std::to_string(n) +
-                     " patches");
+  LAMBERT_CHECK(field.rows() == n,
+                std::string(what) + ": " + std::to_string(field.rows()) + " rows for " + std::to_string(n) + " patches");
   for (int i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c) {
       const double v = field(i, c);
@@ -104,14 +103,14 @@ std::string to_string(Method method) {
 
 Solver::Solver(std::shared_ptr<const formfactor::TransportOperator> F, std::vector<double> area)
     : F_(std::move(F)), area_(std::move(area)) {
-  if (!F_) throw InputError("solver: no transport operator");
+  LAMBERT_CHECK(F_ != nullptr, "solver: no transport operator");
   const int n = F_->size();
-  if (static_cast<int>(area_.size()) != n)
-    throw InputError("solver: " + std::to_string(area_.size()) + " areas for " + std::to_string(n) + " patches");
+  LAMBERT_CHECK(static_cast<int>(area_.size()) == n,
+                "solver: " + std::to_string(area_.size()) + " areas for " + std::to_string(n) + " patches");
   for (int i = 0; i < n; ++i)
-    if (!(area_[i] > 0) || !std::isfinite(area_[i]))
-      throw InputError("solver: area of patch " + std::to_string(i) + " is " + std::to_string(area_[i]) +
-                       ", must be positive and finite");
+    LAMBERT_CHECK(area_[i] > 0 && std::isfinite(area_[i]),
+                  "solver: area of patch " + std::to_string(i) + " is " + std::to_string(area_[i]) +
+                      ", must be positive and finite (the geometry validated it)");
   row_sum_.resize(n);
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 64), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) row_sum_[i] = F_->row_sum(i);
@@ -185,7 +184,9 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
         ++res.report.matvecs;
       }
       report = std::move(res.report);
-      report.residual = (e + r.cwiseProduct(FL) - L).norm() / detail::residual_scale(L, e.norm());
+      const VectorXd resid = e + r.cwiseProduct(FL) - L;
+      report.residual = resid.norm() / detail::residual_scale(L, e.norm());
+      report.residual_max = resid.cwiseAbs().maxCoeff() / std::max(L.cwiseAbs().maxCoeff(), e.cwiseAbs().maxCoeff());
     }
     sol.converged = sol.converged && report.stop == "converged";
     negative += (L.array() < 0).count();

@@ -65,6 +65,11 @@ struct Options {
 };
 
 struct Stats {
+  // What the assembly used (Options, resolved): the rule's name (to_string), tolerance, visibility, rays.
+  std::string rule = "adaptive";
+  double tolerance = 0;
+  bool visibility = true;
+  int rays_per_pair = 0;
   int patches = 0;
   long long pairs_total = 0;               // unordered pairs i < j
   long long pairs_orientation_culled = 0;  // one is behind the other's plane (or coplanar): F = 0, no work

@@ -82,6 +82,7 @@ Orientation parse_orientation(const std::string& name);
 struct PrepareOptions {
   bool repair = true;
   Orientation orient = Orientation::visibility;
+  bool imprint = true;  // with repair: contact lines and crossings imprinted, hidden fragments removed
   double max_edge = 0;  // metres; 0 = no refinement; must be >= 0 and finite
   // Weld, T-junction and touching distance, relative to the bounding-box diagonal of the used
   // vertices. 1e-6 (7 um in a 5 x 4 x 2.7 m room): above the rounding of files written with 6 digits,

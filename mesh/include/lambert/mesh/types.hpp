@@ -19,6 +19,22 @@ struct InputError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A broken internal invariant (a bug, never the user's input): the CLI exits 2 ("internal error").
+// Raise it with LAMBERT_CHECK, not by hand.
+struct InternalError : std::logic_error {
+  using std::logic_error::logic_error;
+};
+
+[[noreturn]] void check_failed(const char* condition, const char* file, int line, const std::string& what);
+
+// LAMBERT_CHECK(cond, message): throws InternalError naming the condition, file:line and the message (any
+// expression convertible to std::string) when cond is false. Always on (also in Release builds): the checks
+// guard invariants whose breach would otherwise give a wrong answer silently.
+#define LAMBERT_CHECK(cond, message)                                                 \
+  do {                                                                               \
+    if (!(cond)) ::lambert::check_failed(#cond, __FILE__, __LINE__, (message));      \
+  } while (false)
+
 // A file location for error messages: "scene.obj:12".
 struct SourceLoc {
   std::string file;

@@ -24,9 +24,9 @@ enum class Method {
 Method parse_method(const std::string& name);
 std::string to_string(Method method);
 
-// What Auto resolves to, from the largest reflectance and the patch count (measured in
-// docs/benchmarks_solver.md: GMRES needs fewer products F x than Jacobi at every rho > 0, e.g. 12 vs 25
-// at 0.5 and 20 vs 11,571 at 0.999 on a 3000-patch room; Gauss-Seidel sweeps are sequential):
+// What Auto resolves to, from the largest reflectance and the patch count (GMRES needs fewer products F x
+// than Jacobi at every rho > 0, increasingly so as rho -> 1: docs/benchmarks_solver.md; Gauss-Seidel sweeps
+// are sequential):
 //   rho_max == 0                                   -> Jacobi (L = Le, one product for the residual)
 //   (restart + 1) * patches * 8 bytes > 2 GiB      -> BiCGSTAB (7 vectors, for huge matrix-free operators)
 //   otherwise                                      -> GMRES
@@ -57,6 +57,9 @@ struct ChannelReport {
   int iterations = 0;   // sweeps or Krylov iterations
   int matvecs = 0;      // products y = F x (Gauss-Seidel: start and convergence checks; sweeps use row_dot)
   double residual = 0;  // relative residual of the returned L, recomputed from it (as in Options::tolerance)
+  // The same residual in the max norm: max_i |Le + rho F L - L|_i / max(max|L|, max|Le|); the solve's part of
+  // the error bound of docs/physics.md §5.
+  double residual_max = 0;
   std::string stop;     // "converged" | "max_iterations" | "stagnation" | "divergence"
   // Relative residuals: [0] of the start, then one per iteration (GMRES: per restart cycle). Exact for
   // Jacobi (entry k is that of iterate k) and GMRES; the running residual (each row at its update) for
@@ -86,7 +89,7 @@ struct Solution {
 // recomputing form factors. Thread-safe for concurrent solve() calls if F's methods are.
 class Solver {
  public:
-  // area: m^2 per patch, > 0, size F->size(). Throws InputError otherwise.
+  // area: m^2 per patch, > 0, size F->size() (preconditions: InternalError via LAMBERT_CHECK otherwise).
   Solver(std::shared_ptr<const formfactor::TransportOperator> F, std::vector<double> area);
 
   // rho: patches x 3 in [0, 1); Le: patches x 3, >= 0 (W m^-2 sr^-1); all finite.

@@ -1,0 +1,31 @@
+#include "lambert/formfactor/json.hpp"
+
+#include <nlohmann/json.hpp>
+
+namespace lambert::formfactor {
+
+void to_json(nlohmann::json& j, const Stats& s) {
+  j = nlohmann::json::object();
+  j["rule"] = s.rule;
+  j["tolerance"] = s.tolerance;
+  j["visibility"] = s.visibility;
+  j["rays_per_pair"] = s.rays_per_pair;
+  j["patches"] = s.patches;
+  j["pairs_total"] = s.pairs_total;
+  j["pairs_orientation_culled"] = s.pairs_orientation_culled;
+  j["pairs_shaft_culled"] = s.pairs_shaft_culled;
+  j["pairs_ray_tested"] = s.pairs_ray_tested;
+  j["pairs_by_method"] = s.pairs_by_method;
+  j["pairs_reused"] = s.pairs_reused;
+  j["pairs_over_tolerance"] = s.pairs_over_tolerance;
+  j["rays_cast"] = s.rays_cast;
+  j["scene_can_occlude"] = s.scene_can_occlude;
+  j["occluders"] = s.occluders;
+  j["row_sum"] = {{"min", s.row_sum_min}, {"max", s.row_sum_max}, {"mean", s.row_sum_mean}};
+  j["reciprocity_residual"] = s.reciprocity_residual;
+  j["entries_outside_unit"] = s.entries_outside_unit;
+  j["seconds"] = s.seconds;
+  j["bytes"] = s.bytes;
+}
+
+}  // namespace lambert::formfactor
