@@ -404,3 +404,29 @@ TEST(RealModelsImprint, FaceCrossingWallsGivesFormFactorsInUnitRangeAndRowSumsOf
     }
   }
 }
+
+// ---- the example storey ----------------------------------------------------------------------------
+
+TEST(RealModelsExample, StoreyShutRoomStaysDarkFromObjAndFromStl) {
+  // examples/storey.obj (and the same storey as binary STL + storey_stl.json): room C (x > 4.2,
+  // z > 2.5) has no lamp and is shut by the wall block and the two-sided partition.
+  const std::string dir = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
+  for (bool stl : {false, true}) {
+    PolygonSoup s = io::read_soup(dir + (stl ? "storey.stl" : "storey.obj"));
+    if (stl) io::apply_materials_json(s, dir + "storey_stl.json");
+    const Scene scene = prepare_and_build(s, {});
+    EXPECT_EQ(count(scene.report, "faces_reoriented"), 0) << all_warnings(scene.report);
+    EXPECT_GT(count(scene.report, "faces_imprinted"), 0);
+    EXPECT_GT(count(scene.report, "two_sided_faces"), 0);
+    const Eigen::VectorXd L = solve_grey(scene);
+    double lit_mean = 0, dark_max = 0;
+    int lit_n = 0;
+    for (int p = 0; p < scene.patches(); ++p) {
+      const Vec3 c = scene.geometry.centroid[p];
+      if (c.x() < 4 - 1e-6) lit_mean += L[p], ++lit_n;
+      if (c.x() > 4.2 + 1e-6 && c.z() > 2.5 + 1e-6) dark_max = std::max(dark_max, std::abs(L[p]));
+    }
+    lit_mean /= lit_n;
+    EXPECT_LE(dark_max, 1e-6 * lit_mean) << (stl ? "stl" : "obj") << ": lit mean " << lit_mean;
+  }
+}

@@ -391,7 +391,7 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
   std::vector<char> check;  // per output face: test for hiding
   std::vector<char> is_piece;  // per output face: a piece of a split face
   std::vector<int> split_ids;
-  long pieces_added = 0;
+  long pieces_added = 0, slivers = 0;
   for (int k = 0; k < nf; ++k) {
     std::vector<std::vector<int>> pieces;
     if (!fd[k].cuts.empty()) pieces = split_face(s, k, fd[k], index);
@@ -404,6 +404,12 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
     split_ids.push_back(origin_of(s, k));
     pieces_added += static_cast<long>(pieces.size()) - 1;
     for (auto& p : pieces) {
+      std::vector<Vec3> poly;
+      for (int v : p) poly.push_back(s.positions[v]);
+      if (zero_area(poly)) {  // a sliver left by corners snapped together (within the weld tolerance)
+        ++slivers;
+        continue;
+      }
       SoupFace piece = s.faces[k];
       piece.origin = origin_of(s, k);
       piece.vertices = std::move(p);
@@ -413,6 +419,11 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
     }
   }
   s.faces = std::move(out);
+  report.counts["imprint_slivers_dropped"] += 0;
+  if (slivers > 0)
+    report.warn("imprint_slivers_dropped", slivers,
+                plural(slivers, "zero-area sliver", "zero-area slivers") +
+                    " left by splitting (corners closer than the weld tolerance) were dropped");
   if (!split_ids.empty())
     report.warn("faces_imprinted", static_cast<long>(split_ids.size()),
                 plural(static_cast<long>(split_ids.size()), "face was", "faces were") +
