@@ -160,7 +160,7 @@ void intersect_pair(FaceData& f, FaceData& g, double tol) {
   std::vector<std::array<Vec3, 2>> found;
   for (const auto& tf : f.tris)
     for (const auto& tg : g.tris) {
-      if (!CGAL::do_overlap(tf.bbox(), tg.bbox())) continue;
+      if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) || !CGAL::do_intersect(tf, tg)) continue;
       const auto x = CGAL::intersection(tf, tg);
       if (!x) continue;
       if (const auto* s = boost::get<KE::Segment_3>(&*x)) found.push_back({vec(s->source()), vec(s->target())});
@@ -376,8 +376,35 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
   });
   std::sort(pairs.begin(), pairs.end());
   std::vector<char> in_contact(nf, 0);
+  auto shared_corners = [&](int a, int b) {
+    int n = 0;
+    for (int v : s.faces[a].vertices)
+      n += std::find(s.faces[b].vertices.begin(), s.faces[b].vertices.end(), v) != s.faces[b].vertices.end();
+    return n;
+  };
   for (auto [a, b] : pairs) {
     if (origin_of(s, a) == origin_of(s, b)) continue;
+    // Neighbours across an edge that are not coplanar meet only along it (a fold would be coplanar).
+    // Coplanar neighbours across an edge, on either side of it, do not overlap either.
+    if (shared_corners(a, b) >= 2) {
+      if (fd[a].n.cross(fd[b].n).norm() > 1e-9) continue;
+      const auto& fa = s.faces[a].vertices;
+      int e0 = -1, e1 = -1;
+      for (size_t c = 0; c < fa.size() && e1 < 0; ++c) {
+        const int v = fa[c], w = fa[(c + 1) % fa.size()];
+        const auto& fb = s.faces[b].vertices;
+        if (std::find(fb.begin(), fb.end(), v) != fb.end() && std::find(fb.begin(), fb.end(), w) != fb.end())
+          e0 = v, e1 = w;
+      }
+      if (e1 >= 0) {
+        const Vec3 &p0 = s.positions[e0], &p1 = s.positions[e1];
+        const Vec3 side = (p1 - p0).cross(fd[a].n);
+        Vec3 ca = Vec3::Zero(), cb = Vec3::Zero();
+        for (const Vec3& q : fd[a].poly) ca += q / double(fd[a].poly.size());
+        for (const Vec3& q : fd[b].poly) cb += q / double(fd[b].poly.size());
+        if (side.dot(ca - p0) * side.dot(cb - p0) < 0) continue;
+      }
+    }
     const size_t ca = fd[a].cuts.size(), cb = fd[b].cuts.size();
     intersect_pair(fd[a], fd[b], tol);
     // Coincident or touching faces are candidates for hiding even when nothing splits them.

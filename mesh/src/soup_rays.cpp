@@ -53,7 +53,6 @@ SoupRays::SoupRays(const PolygonSoup& s, const std::vector<char>& include) : imp
   }
   impl_->tree.insert(impl_->tris.begin(), impl_->tris.end());
   impl_->tree.build();
-  if (!impl_->tris.empty()) impl_->tree.accelerate_distance_queries();
 }
 
 SoupRays::~SoupRays() = default;
