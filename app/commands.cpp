@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "lambert/formfactor/assemble.hpp"
+#include "lambert/formfactor/check.hpp"
 #include "lambert/formfactor/json.hpp"
 #include "lambert/mesh/json.hpp"
 #include "lambert/refine/json.hpp"
@@ -76,8 +77,17 @@ void write_json(const std::string& path, const json& j) {
   io::write_file_atomically(path, [&](std::ostream& os) { os << j.dump(2) << '\n'; });
 }
 
-formfactor::Options ff_options(const CommonOptions& o, Progress* progress) {
+// The largest reflectance over patches (or soup faces) and channels: the automatic form-factor tolerance
+// follows it (formfactor::default_tolerance).
+double max_reflectance(const std::vector<mesh::Material>& materials) {
+  double m = 0;
+  for (const auto& mat : materials) m = std::max(m, mat.reflectance.maxCoeff());
+  return m;
+}
+
+formfactor::Options ff_options(const CommonOptions& o, double rho_max, Progress* progress) {
   formfactor::Options f = o.ff;
+  f.max_reflectance = rho_max;
   f.visibility = !o.no_visibility;
   formfactor::parse_rule(o.ff_rule, f.rule, f.order);
   f.threads = o.threads;
@@ -93,6 +103,17 @@ std::string scene_line(const mesh::Scene& scene) {
                      scene.materials.size());
 }
 
+// The independent row-sum check (formfactor/check.hpp) on the assembled matrix: rays cast from a sample of
+// patches count what each patch sees, compared with its row sum within the assembly's own bounds. Skipped
+// without visibility (then the rays would see occluders the matrix ignores).
+formfactor::RowSumCheck check_rows(const CommonOptions& o, const mesh::Scene& scene,
+                                   const formfactor::TransportOperator& F, const formfactor::Stats& st) {
+  if (o.no_visibility || scene.patches() == 0) return {};
+  formfactor::RowSumCheckOptions c;
+  c.threads = o.threads;
+  return formfactor::check_row_sums(scene.geometry, F, &st, c);
+}
+
 // One run of `solve` or `formfactors`: what the summary and --stats describe (one schema for both).
 struct Run {
   std::string command;                             // "solve" | "formfactors"
@@ -101,6 +122,7 @@ struct Run {
   const formfactor::Stats* ff = nullptr;           // the (final) assembly
   const solver::Solution* solution = nullptr;      // solve only
   const refine::AdaptiveResult* adaptive = nullptr;  // solve --adaptive-budget only
+  const formfactor::RowSumCheck* row_check = nullptr;  // independent ray estimate of row sums (final assembly)
   long long entries_written = -1;                  // formfactors only
 };
 
@@ -121,20 +143,55 @@ std::vector<Finding> assess(const Run& r) {
   };
   // Form-factor failures, over every adaptive round (each computed pair is counted in the round that
   // computed it).
-  long long over = 0, outside = 0;
-  if (r.adaptive) {
-    for (const auto& rd : r.adaptive->rounds) {
-      over += rd.ff.pairs_over_tolerance;
-      outside += rd.ff.entries_outside_unit;
+  long long over = 0, outside = 0, roundoff = 0, blind = 0;
+  double recip_ratio = 0;
+  std::string recip_method;
+  auto count = [&](const formfactor::Stats& st) {
+    over += st.pairs_over_tolerance;
+    outside += st.entries_outside_unit;
+    roundoff += st.entries_roundoff;
+    blind += st.pairs_no_visible_sample;
+    if (st.reciprocity_bound_ratio > recip_ratio) {
+      recip_ratio = st.reciprocity_bound_ratio;
+      recip_method = st.reciprocity_worst_method;
     }
+  };
+  if (r.adaptive) {
+    for (const auto& rd : r.adaptive->rounds) count(rd.ff);
   } else if (r.ff) {
-    over = r.ff->pairs_over_tolerance;
-    outside = r.ff->entries_outside_unit;
+    count(*r.ff);
   }
   add("pairs_over_tolerance", double(over),
       fmt::format("{} pairs stopped their adaptive integration above the form-factor tolerance", over), false);
+  add("pairs_no_visible_sample", double(blind),
+      fmt::format("{} ray-tested pairs had no sample pair facing each other (taken as exchanging nothing)", blind),
+      false);
+  add("entries_roundoff", double(roundoff),
+      fmt::format("{} form factors were outside [0, 1] by no more than their error bound (round-off; set to 0 or 1)",
+                  roundoff),
+      false);
   add("entries_outside_unit", double(outside),
-      fmt::format("{} form factors outside [0, 1] (never clamped): the form factors are wrong", outside), true);
+      fmt::format("{} form factors outside [0, 1] beyond their error bound (never clamped): the form factors are wrong",
+                  outside),
+      true);
+  if (recip_ratio > 1)
+    add("reciprocity_check", recip_ratio,
+        fmt::format("reciprocity check: {} pairs integrated independently in the reverse direction differ by {:.3g}x "
+                    "their error bound (worst method {}); the error bound does not hold",
+                    r.ff ? r.ff->reciprocity_check_pairs : 0, recip_ratio, recip_method),
+        true);
+  if (r.row_check && !r.row_check->passed) {
+    // Fatal under the adaptive rule, whose error is controlled; the fixed rules (point, gaussN) exist to show
+    // what uncontrolled rules do, so there it is reported and the result still written.
+    const formfactor::RowSumCheck& c = *r.row_check;
+    const bool controlled = !r.ff || r.ff->rule == "adaptive";
+    add("row_sum_check", c.max_ratio,
+        fmt::format("row-sum check: patch {} sums to {:.6f} but rays cast from it find {:.6f} (allowed difference "
+                    "{:.2e}, exceeded {:.3g}x): form factors or visibility are wrong (a leak, or missing light){}",
+                    c.worst_patch, c.worst_row_sum, c.worst_estimate, c.worst_allowed, c.max_ratio,
+                    controlled ? "" : "; expected of a fixed rule without error control"),
+        controlled);
+  }
   if (r.adaptive) {
     long unconverged = 0;
     for (const auto& rd : r.adaptive->rounds) unconverged += rd.solve_converged ? 0 : 1;
@@ -158,8 +215,9 @@ std::vector<Finding> assess(const Run& r) {
 // Visibility (a ray estimate) is not part of the bound; `visibility_estimated` says whether it played a role.
 struct ErrorBound {
   double total = INFINITY, form_factors = 0, solve = 0;
+  double visibility = 0;  // 3 x the largest row's visibility standard error (an estimate, not a bound)
   bool visibility_estimated = false;
-  bool exists = false;  // false when rho_max s_max >= 1
+  bool exists = false;  // false for fixed rules (no error estimate) and when rho_max s_max >= 1
 };
 
 ErrorBound error_bound(const Run& r) {
@@ -168,13 +226,18 @@ ErrorBound error_bound(const Run& r) {
   double rho_max = 0;
   for (int p = 0; p < r.scene->patches(); ++p) rho_max = std::max(rho_max, r.scene->reflectance(p).maxCoeff());
   const formfactor::Stats& s = *r.ff;
-  // Integration: each of a row's at most N - 1 computed entries is within `tolerance` (fixed rules: no bound).
-  b.form_factors = s.rule == "adaptive" ? s.tolerance * std::max(0, s.patches - 1) : INFINITY;
+  // Integration: the largest row's sum of per-entry error bounds (fixed rules carry none). Adaptive rounds
+  // copy entries from earlier rounds: take the largest over every round.
+  b.form_factors = s.row_error_bound_max >= 0 ? s.row_error_bound_max : INFINITY;
+  if (r.adaptive)
+    for (const auto& rd : r.adaptive->rounds)
+      b.form_factors = rd.ff.row_error_bound_max >= 0 ? std::max(b.form_factors, rd.ff.row_error_bound_max) : INFINITY;
+  b.visibility = 3 * s.row_visibility_sigma_max;
   for (const auto& c : r.solution->channels) b.solve = std::max(b.solve, c.residual_max);
   b.visibility_estimated = s.rays_cast > 0;
   const double denom = 1 - rho_max * std::max(1.0, s.row_sum_max);
   b.exists = denom > 0 && std::isfinite(b.form_factors);
-  if (b.exists) b.total = (rho_max * b.form_factors + b.solve) / denom;
+  if (b.exists) b.total = (rho_max * (b.form_factors + b.visibility) + b.solve) / denom;
   return b;
 }
 
@@ -205,6 +268,14 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
     j["adaptive"] = a;
   }
   if (r.entries_written >= 0) j["entries_written"] = r.entries_written;
+  if (r.row_check) {
+    const formfactor::RowSumCheck& c = *r.row_check;
+    j["row_sum_check"] = {{"patches_checked", c.patches_checked}, {"rays", c.rays},
+                          {"max_difference", c.max_difference}, {"max_ratio", c.max_ratio},
+                          {"worst_patch", c.worst_patch}, {"worst_row_sum", c.worst_row_sum},
+                          {"worst_estimate", c.worst_estimate}, {"worst_allowed", c.worst_allowed},
+                          {"passed", c.passed}};
+  }
   json checks = json::object();
   for (const Finding& f : findings) checks[f.key] = {{"value", f.value}, {"fatal", f.fatal}, {"message", f.message}};
   j["findings"] = checks;
@@ -214,22 +285,33 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                         {"relative_radiance", b.exists ? json(b.total) : json(nullptr)},
                         {"form_factor_row", std::isfinite(b.form_factors) ? json(b.form_factors) : json(nullptr)},
                         {"solve_residual", b.solve},
+                        {"visibility_3sigma", b.visibility},
                         {"visibility_estimated", b.visibility_estimated}};
   return j;
 }
 
-std::string ff_lines(const formfactor::Stats& s) {
-  return fmt::format(
+std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* check) {
+  std::string out = fmt::format(
       "  pairs        {} ({} culled by orientation, {} proven unoccluded, {} ray-tested), rays {}\n"
       "  form factors {} rule, tolerance {:.1e} per entry; row sum min/mean/max {:.6f} / {:.6f} / {:.6f}\n",
       s.pairs_total, s.pairs_orientation_culled, s.pairs_shaft_culled, s.pairs_ray_tested, s.rays_cast, s.rule,
       s.tolerance, s.row_sum_min, s.row_sum_mean, s.row_sum_max);
+  if (s.reciprocity_check_pairs > 0)
+    out += fmt::format("  reciprocity  {} pairs integrated independently in reverse: largest difference {:.2e} relative, "
+                       "{:.2g}x its error bound ({})\n",
+                       s.reciprocity_check_pairs, s.reciprocity_residual, s.reciprocity_bound_ratio,
+                       s.reciprocity_worst_method.empty() ? "-" : s.reciprocity_worst_method);
+  if (check && check->patches_checked > 0)
+    out += fmt::format("  row sums     {} patches against {} rays cast from them: largest difference {:.2e}, {:.2g}x "
+                       "the allowed (patch {})\n",
+                       check->patches_checked, check->rays, check->max_difference, check->max_ratio, check->worst_patch);
+  return out;
 }
 
 std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Finding>& findings,
                     const std::string& detail) {
   std::string s = fmt::format("lambert {} {}\n", r.command, r.options->scene) + scene_line(*r.scene);
-  if (r.ff) s += ff_lines(*r.ff);
+  if (r.ff) s += ff_lines(*r.ff, r.row_check);
   s += detail;
   if (r.solution) {
     const solver::Solution& sol = *r.solution;
@@ -244,10 +326,13 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
     s += fmt::format("  energy       emitted {} W, absorbed {} W, escaped {} W\n", rgb_str(sol.emitted),
                      rgb_str(sol.absorbed), rgb_str(sol.escaped));
     const ErrorBound b = error_bound(r);
-    if (b.exists)
-      s += fmt::format("  error bound  |dL|/max L <= {:.1e} (form factors {:.1e} per row, solve residual {:.1e} max-norm){}\n",
-                       b.total, b.form_factors, b.solve,
-                       b.visibility_estimated ? "; visibility is a ray estimate, not bounded" : "");
+    if (b.exists && b.visibility_estimated)
+      s += fmt::format("  error bound  |dL|/max L <= {:.1e} (form factors {:.1e} per row, visibility 3 sigma {:.1e} per "
+                       "row (a ray estimate), solve residual {:.1e})\n",
+                       b.total, b.form_factors, b.visibility, b.solve);
+    else if (b.exists)
+      s += fmt::format("  error bound  |dL|/max L <= {:.1e} (form factors {:.1e} per row, solve residual {:.1e})\n",
+                       b.total, b.form_factors, b.solve);
     else
       s += "  error bound  none (fixed form-factor rule, or reflectance x row sum >= 1)\n";
   }
@@ -326,14 +411,16 @@ int run_formfactors(const CommonOptions& o) {
   mesh::Scene scene = load(o, timer);
   formfactor::Stats st;
   Progress progress("form factors", !o.quiet);
-  const formfactor::Options f = ff_options(o, &progress);
+  const formfactor::Options f = ff_options(o, max_reflectance(scene.materials), &progress);
   timer.start("form_factors");
   const formfactor::DenseMatrixOperator F = formfactor::assemble(scene.geometry, f, &st);
   progress.done();
+  timer.start("checks");
+  const formfactor::RowSumCheck row_check = check_rows(o, scene, F, st);
   timer.start("aggregate");
   const auto entries = formfactor::aggregate_to_faces(F, scene.geometry, scene.face_id, scene.input_faces);
   timer.stop();
-  Run run{.command = "formfactors", .options = &o, .scene = &scene, .ff = &st};
+  Run run{.command = "formfactors", .options = &o, .scene = &scene, .ff = &st, .row_check = &row_check};
   const std::vector<Finding> findings = assess(run);
   const int status = verdict(findings, "the form factors");
   if (status == 0) {
@@ -392,7 +479,7 @@ int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseT
   timer.start("adaptive");
   refine::AdaptiveOptions ao = o.adaptive;
   ao.max_patches = o.adaptive_budget;
-  ao.ff = ff_options(o, nullptr);
+  ao.ff = ff_options(o, max_reflectance(soup.materials), nullptr);
   ao.solve = so;
   refine::AdaptiveResult r = refine::solve_adaptive(soup, ao);
   timer.stop();
@@ -414,6 +501,13 @@ int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseT
       pairs ? 100.0 * double(reused) / double(pairs) : 0.0);
   const formfactor::Stats* last = r.rounds.empty() ? nullptr : &r.rounds.back().ff;
   Run run{.command = "solve", .options = &o, .scene = &r.scene, .ff = last, .solution = &r.solution, .adaptive = &r};
+  formfactor::RowSumCheck row_check;
+  if (r.final_matrix) {
+    timer.start("checks");
+    row_check = check_rows(o, r.scene, *r.final_matrix, *last);
+    timer.stop();
+    run.row_check = &row_check;
+  }
   return finish_solve(run, timer, detail);
 }
 
@@ -428,10 +522,12 @@ int run_solve(const CommonOptions& o) {
   formfactor::DenseMatrixOperator F;
   {
     Progress progress("form factors", !o.quiet);
-    const formfactor::Options opt = ff_options(o, &progress);
+    const formfactor::Options opt = ff_options(o, max_reflectance(scene.materials), &progress);
     timer.start("form_factors");
     F = formfactor::assemble(scene.geometry, opt, &st);
   }
+  timer.start("checks");
+  const formfactor::RowSumCheck row_check = check_rows(o, scene, F, st);
 
   timer.start("solve");
   solver::Solution sol;
@@ -445,7 +541,7 @@ int run_solve(const CommonOptions& o) {
     so.progress = nullptr;
   }
   timer.stop();
-  const Run run{.command = "solve", .options = &o, .scene = &scene, .ff = &st, .solution = &sol};
+  const Run run{.command = "solve", .options = &o, .scene = &scene, .ff = &st, .solution = &sol, .row_check = &row_check};
   return finish_solve(run, timer, "");
 }
 

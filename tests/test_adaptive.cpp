@@ -1,4 +1,4 @@
-// Adaptive refinement (solver/adaptive.hpp) against a case with a known continuous answer.
+// Adaptive refinement (refine/adaptive.hpp) against a case with a known continuous answer.
 #include <gtest/gtest.h>
 
 #include <array>

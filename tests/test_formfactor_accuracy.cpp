@@ -206,7 +206,7 @@ TEST(FormFactorAccuracy, StraddlingPairsMatchBruteForce) {
     const double f2 = fftest::graded_triangle_source(O, X, B, T), a2 = 0.5 * (X - O).cross(B - O).norm();
     const double ref = (f1 * a1 + f2 * a2) / 0.5;
     const PairResult r = polygon_to_polygon(S, T);
-    EXPECT_NEAR(r.F, ref, Options{}.tolerance) << "tilt " << tilt << " method " << r.method;
+    EXPECT_NEAR(r.F, ref, default_tolerance(-1)) << "tilt " << tilt << " method " << r.method;
     EXPECT_GT(r.F, 1e-3);
   }
 }

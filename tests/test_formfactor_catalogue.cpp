@@ -17,7 +17,7 @@ using lambert::fftest::rect;
 
 namespace {
 constexpr double kCatalogueTol = 1e-7;
-const double kDefaultTol = Options{}.tolerance;
+const double kDefaultTol = default_tolerance(-1);  // the automatic tolerance when the reflectance is not known
 }  // namespace
 
 TEST(FormFactorCatalogue, ClosedFormsReproduceCatalogueValues) {

@@ -39,7 +39,8 @@ struct Rule2D {
 };
 // m x m Gauss-Legendre on [0,1]^2 (degree 2m-1).
 const Rule2D& gauss_square(int m);
-// Collapsed (Duffy) m x m Gauss rule on the triangle (0,0),(1,0),(0,1): positive weights, degree 2m-1.
+// Collapsed (Duffy) m x m Gauss rule on the triangle (0,0),(1,0),(0,1): positive weights, exact for polynomials
+// of degree 2m-2 (Gauss-Legendre in t times the Jacobian 1 - t; tiers.hpp's exponent for such sources is 2m-1).
 const Rule2D& gauss_triangle(int m);
 // 1D Gauss-Legendre on [0,1].
 void gauss_legendre01(int m, std::vector<double>& x, std::vector<double>& w);
@@ -48,12 +49,13 @@ void gauss_legendre01(int m, std::vector<double>& x, std::vector<double>& w);
 struct PatchData {
   int n = 0;
   std::vector<Vec3> c, nrm;          // centroid, unit normal
-  std::vector<double> area, rho;     // area, circumradius about the centroid
+  std::vector<double> area, radius;  // area, circumradius about the centroid
   std::vector<double> offset;        // n . c
   std::vector<double> eps;           // plane classification tolerance (relative to scene size)
   std::vector<std::array<double, 6>> M;  // second-moment tensor / area about c: xx yy zz xy xz yz
   std::vector<std::uint8_t> kind;    // 0 = triangle, 1 = parallelogram, 2 = convex quad, 3 = general polygon
-  // Outer rules: for tier t (m = 2,3,4), patch p: points [rule_off[t][p], rule_off[t][p+1]) in rule_pts.
+  // Outer rules: for m = 2, 3, 4 points per side, patch p: points [rule_off[m][p], rule_off[m][p+1]) in
+  // rule_pts[m] (larger m are mapped per pair from reference rules).
   std::array<std::vector<int>, 5> rule_off;
   std::array<std::vector<std::array<double, 4>>, 5> rule_pts;  // x, y, z, weight (weights sum to 1 per patch)
   const mesh::PatchGeometry* g = nullptr;
@@ -66,10 +68,9 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier = 4);
 void outer_rule(std::span<const Vec3> poly, std::span<const std::array<int, 3>> tris, int m,
                 std::vector<std::array<double, 4>>& out);
 
-// A-priori error model: estimate of |F_ij error| for tier t (0 = far field, 1 = centroid + Hessian
-// correction, 2..6 = m x m Gauss, m = kTierM[t]) given S = A_j / (pi d^2), r = rho_i / d, q = rho_j / d, with
-// d the distance from c_i to the bounding sphere of P_j. Exponents: the rule's order, 4 for tiers 0/1 and 2m
-// for Gauss, one less for a source (or, tier 0, target) that is not centrally symmetric.
+// A-priori error model (tiers.hpp): estimate of |F_ij error| for tier t (0 = far field, 1 = centroid + Hessian
+// correction, 2..6 = m x m Gauss, m = kTierM[t]) given S = A_j / (pi d^2), r = R_i / d, q = R_j / d (R the
+// circumradii), d the distance from c_i to the bounding sphere of P_j.
 double tier_error(int t, double S, double r, double q, bool source_symmetric, bool target_symmetric);
 
 // Centroid value plus second-order (Hessian) correction; see pair.cpp.
@@ -92,6 +93,14 @@ enum Method {
 extern const char* const kMethodNames[kMethodCount];
 int tier_method(int t);
 PairEval pair_scalar(const PatchData& P, int src, int tgt, double tol);
+
+// A_t F_ts (m^2) integrated from t's side, independently of the tiers: mutual clipping, then the adaptive
+// double contour integral with t's edges outer, to an absolute error tol * A_s on A_t F_ts. For the
+// reciprocity check (A_s F_st should equal it).
+struct ReverseIntegral {
+  double AF = 0, error = 0;
+};
+ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol);
 
 // Signed distances of polygon corners to a plane: returns (min, max).
 std::array<double, 2> plane_range(std::span<const Vec3> poly, const Vec3& n, double offset);

@@ -22,8 +22,16 @@ void to_json(nlohmann::json& j, const Stats& s) {
   j["scene_can_occlude"] = s.scene_can_occlude;
   j["occluders"] = s.occluders;
   j["row_sum"] = {{"min", s.row_sum_min}, {"max", s.row_sum_max}, {"mean", s.row_sum_mean}};
+  j["row_error_bound_max"] = s.row_error_bound_max;
+  j["row_visibility_sigma_max"] = s.row_visibility_sigma_max;
+  j["reciprocity_check_pairs"] = s.reciprocity_check_pairs;
   j["reciprocity_residual"] = s.reciprocity_residual;
+  j["reciprocity_bound_ratio"] = s.reciprocity_bound_ratio;
+  j["reciprocity_worst_method"] = s.reciprocity_worst_method;
+  j["reciprocity_pairs_by_method"] = s.reciprocity_pairs_by_method;
+  j["entries_roundoff"] = s.entries_roundoff;
   j["entries_outside_unit"] = s.entries_outside_unit;
+  j["pairs_no_visible_sample"] = s.pairs_no_visible_sample;
   j["seconds"] = s.seconds;
   j["bytes"] = s.bytes;
 }

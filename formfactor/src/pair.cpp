@@ -78,7 +78,7 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
   P.c = g.centroid;
   P.nrm = g.normal;
   P.area = g.area;
-  P.rho.resize(n);
+  P.radius.resize(n);
   P.offset.resize(n);
   P.M.resize(n);
   P.kind.resize(n);
@@ -94,7 +94,7 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
     const Vec3& c = g.centroid[p];
     double r = 0;
     for (const Vec3& v : poly) r = std::max(r, (v - c).norm());
-    P.rho[p] = r;
+    P.radius[p] = r;
     P.offset[p] = g.normal[p].dot(c);
     local.clear();
     for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
@@ -132,47 +132,30 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
   return P;
 }
 
+namespace {
+
+Moments<double> moments(const std::array<double, 6>& M) { return {M[0], M[1], M[2], M[3], M[4], M[5]}; }
+
+}  // namespace
+
 double tier_error(int t, double S, double r, double q, bool source_symmetric, bool target_symmetric) {
-  const double r2 = r * r, q2 = q * q, C = kTierConstant[t][source_symmetric ? 1 : 0];
-  if (t == 0) return C * S * ((source_symmetric ? r2 * r2 : r2 * r) + (target_symmetric ? q2 * q2 : q2 * q) + r2 * q2);
-  const int p = (t == 1 ? 4 : 2 * kTierM[t]) - (source_symmetric ? 0 : 1);
-  double rp = 1;
-  for (int k = 0; k < p; ++k) rp *= r;
-  if (t == 1) rp += r2 * q2;  // the Hessian is taken at the target's centroid
-  return C * S * rp;
+  const TierInput<double> in{S, r, q};
+  if (t == 0) return tier0_error(in, source_symmetric, target_symmetric);
+  double e[kTiers];
+  tier_errors(in, source_symmetric, e);
+  return e[t];
 }
 
 double hessian_correction(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& M, const Vec3& cj,
                           const Vec3& nj, double Aj) {
-  // f(x) ~ A_j K(x, c_j) with K = (n_i.(c_j - x)) (n_j.u) / (pi |u|^4), u = x - c_j; n_i.(c_j - x) is constant
-  // for x in P_i's plane. Correction = (1/2) tr(M Hess_x K) A_j.
   const Vec3 u = ci - cj;
-  const double uu = u.squaredNorm();
-  const double A = ni.dot(cj - ci), nu = nj.dot(u);
-  const Vec3 Mu(M[0] * u.x() + M[3] * u.y() + M[4] * u.z(), M[3] * u.x() + M[1] * u.y() + M[5] * u.z(),
-                M[4] * u.x() + M[5] * u.y() + M[2] * u.z());
-  const double trM = M[0] + M[1] + M[2];
-  const double i3 = 1.0 / (uu * uu * uu);
-  const double tr = -8 * nj.dot(Mu) * i3 - 4 * nu * trM * i3 + 24 * nu * u.dot(Mu) * i3 / uu;
-  return 0.5 * Aj * A / kPi * tr;
+  return centroid_hessian_correction(u.x(), u.y(), u.z(), ni.x(), ni.y(), ni.z(), nj.x(), nj.y(), nj.z(), moments(M), Aj);
 }
 
 double far_field(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& Mi, const Vec3& cj, const Vec3& nj,
                  const std::array<double, 6>& Mj, double Aj) {
-  // Second-order expansion of (1/A_i) int int K about the two centroids: K0 A_j + (1/2) tr(M_i Hess_x K) A_j
-  // + (1/2) tr(M_j Hess_y K) A_j; first-order terms vanish at centroids, the mixed term too.
   const Vec3 u = ci - cj;
-  const double uu = u.squaredNorm(), inv = 1.0 / uu;
-  const double A = -ni.dot(u), nu = nj.dot(u);
-  auto mul = [](const std::array<double, 6>& M, const Vec3& v) {
-    return Vec3(M[0] * v.x() + M[3] * v.y() + M[4] * v.z(), M[3] * v.x() + M[1] * v.y() + M[5] * v.z(),
-                M[4] * v.x() + M[5] * v.y() + M[2] * v.z());
-  };
-  const Vec3 Miu = mul(Mi, u), Mju = mul(Mj, u);
-  const double i3 = inv * inv * inv;
-  const double ts = (-8 * nj.dot(Miu) - 4 * nu * (Mi[0] + Mi[1] + Mi[2]) + 24 * nu * u.dot(Miu) * inv) * i3;
-  const double tt = (8 * ni.dot(Mju) - 4 * A * (Mj[0] + Mj[1] + Mj[2]) + 24 * A * u.dot(Mju) * inv) * i3;
-  return Aj / kPi * (A * nu * inv * inv + 0.5 * A * ts + 0.5 * nu * tt);
+  return far_field_value(u.x(), u.y(), u.z(), ni.x(), ni.y(), ni.z(), nj.x(), nj.y(), nj.z(), moments(Mi), moments(Mj), Aj);
 }
 
 PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
@@ -188,14 +171,17 @@ PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
   }
   const bool straddle = rt[0] < -eps || rs[0] < -eps;
   if (!straddle) {
+    // The tier choice of tiers.hpp, as the SIMD classify: the first tier whose estimate is <= tol.
     const double D = (P.c[s] - P.c[t]).norm();
-    const double d = D - P.rho[t];
-    if (d > 0 && P.rho[s] <= kMaxAreaRatio * d) {
-      const double S = P.area[t] / (kPi * d * d), r = P.rho[s] / d, q = P.rho[t] / d;
+    const TierInput<double> in = tier_input(D, P.radius[s], P.radius[t], P.area[t]);
+    if (tier_eligible(D, P.radius[t], in)) {
       const bool sym = P.kind[s] == 1, symt = P.kind[t] == 1;
+      double e[kTiers];
+      e[0] = tier0_error(in, sym, symt);
+      if (!(e[0] <= tol)) tier_errors(in, sym, e);
       for (int tier = 0; tier < kTiers; ++tier) {
-        const double est = tier_error(tier, S, r, q, sym, symt);
-        if (est > tol) continue;
+        const double est = e[tier];
+        if (!(est <= tol)) continue;
         const int m = kTierM[tier];
         double F = 0;
         if (tier == 0) {
@@ -239,6 +225,19 @@ PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
   out.error = c.error / P.area[s];
   out.evaluations = c.evaluations;
   return out;
+}
+
+ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol) {
+  const mesh::PatchGeometry& g = *P.g;
+  std::vector<Vec3> cs, ct;
+  clip_front(g.polygon(s), P.nrm[t], P.offset[t], P.scene_eps, cs);
+  clip_front(g.polygon(t), P.nrm[s], P.offset[s], P.scene_eps, ct);
+  ReverseIntegral r;
+  if (cs.size() < 3 || ct.size() < 3) return r;
+  const ContourResult c = contour_pair(ct, cs, tol * P.area[s]);
+  r.AF = c.AF;
+  r.error = c.error;
+  return r;
 }
 
 }  // namespace detail

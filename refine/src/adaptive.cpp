@@ -120,6 +120,7 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
       result.max_indicator.push_back(0);
       result.error_estimate.push_back(0);
       result.stop = "solve_not_converged";
+      result.final_matrix = std::make_shared<const formfactor::DenseMatrixOperator>(std::move(F));
       result.soup = std::move(soup);
       result.scene = std::move(scene);
       result.solution = std::move(sol);
@@ -178,6 +179,7 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
     const bool last = converged || chosen == 0 || round == options.max_rounds;
     if (last) {
       result.stop = converged ? "converged" : chosen == 0 ? "budget" : "max_rounds";
+      result.final_matrix = std::make_shared<const formfactor::DenseMatrixOperator>(std::move(F));
       result.soup = std::move(soup);
       result.scene = std::move(scene);
       result.solution = std::move(sol);

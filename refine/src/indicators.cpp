@@ -62,16 +62,21 @@ void sample_points(const mesh::PatchGeometry& g, int p, std::vector<Vec3>& out) 
   }
 }
 
+// The scale every indicator is relative to: the largest reflected radiance L - Le (over patches and
+// channels); 0 when nothing is reflected (then there is no resolution error to find).
+double reflected_scale(const mesh::Scene& scene, const ColorField& radiance) {
+  if (scene.patches() == 0) return 0;
+  return (radiance - scene.emission_field()).maxCoeff();
+}
+
 }  // namespace
 
 std::vector<double> jump_indicator(const mesh::Scene& scene, const ColorField& radiance) {
   const int n = scene.patches();
   std::vector<double> ind(n, 0.0);
-  if (n == 0) return ind;
+  const double scale = reflected_scale(scene, radiance);
+  if (!(scale > 0)) return ind;
   const auto& g = scene.geometry;
-  const ColorField Le = scene.emission_field();
-  const double scale = (radiance - Le).maxCoeff();
-  if (!(scale > 0)) return ind;  // nothing reflected: no resolution error to find
 
   std::vector<Box> boxes(n);
   Box all = box_of(g.polygon(0));
@@ -112,11 +117,10 @@ std::vector<double> direct_indicator(const mesh::Scene& scene, const ColorField&
                                      const formfactor::Visibility* caster) {
   const int n = scene.patches();
   std::vector<double> ind(n, 0.0);
-  if (n == 0) return ind;
+  const double scale = reflected_scale(scene, radiance);
+  if (!(scale > 0)) return ind;
   const auto& g = scene.geometry;
   const ColorField Le = scene.emission_field();
-  const double scale = (radiance - Le).maxCoeff();
-  if (!(scale > 0)) return ind;
   std::vector<int> emitters;
   for (int e = 0; e < n; ++e)
     if (Le.row(e).maxCoeff() > 0) emitters.push_back(e);
@@ -170,9 +174,10 @@ std::vector<double> gather_indicator(const mesh::Scene& scene, const formfactor:
                                      const ColorField& radiance) {
   const int n = scene.patches();
   std::vector<double> ind(n, 0.0);
-  if (n == 0 || F.size() != n) return ind;
+  LAMBERT_CHECK(F.size() == n, "gather_indicator: matrix of " + std::to_string(F.size()) + " patches for " + std::to_string(n));
+  if (n == 0) return ind;
   const auto& g = scene.geometry;
-  const double scale = (radiance - scene.emission_field()).maxCoeff();
+  const double scale = reflected_scale(scene, radiance);
   if (!(scale > 0)) return ind;
   const auto& M = F.matrix();
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& r) {

@@ -228,7 +228,9 @@ VerifyReport verify_sphere(const SphereCase& c) {
   VerifyReport r;
   r.name = fmt::format("sphere K={} {} rho={}", c.subdivisions, c.emission, c.rho);
   auto fields = [&](const mesh::PatchGeometry& g, ColorField& rho, ColorField& Le) { sphere_fields(c, g, rho, Le); };
-  Run run = assemble_and_solve(sphere_geometry(c), c.ff, fields, c.solve, r);
+  formfactor::Options ff = c.ff;
+  if (ff.max_reflectance < 0) ff.max_reflectance = c.rho;  // the largest reflectance of every emission pattern
+  Run run = assemble_and_solve(sphere_geometry(c), ff, fields, c.solve, r);
   std::string exact_line, basis;
   const Eigen::VectorXd exact = sphere_exact(c, run.geometry, &exact_line);
   if (c.emission == "uniform") {
@@ -255,7 +257,9 @@ VerifyReport verify_furnace(const FurnaceCase& c) {
     rho = ColorField::Constant(g.size(), 3, c.rho);
     Le = ColorField::Constant(g.size(), 3, c.E0);
   };
-  Run run = assemble_and_solve(furnace_geometry(c), c.ff, fields, c.solve, r);
+  formfactor::Options ff = c.ff;
+  if (ff.max_reflectance < 0) ff.max_reflectance = c.rho;
+  Run run = assemble_and_solve(furnace_geometry(c), ff, fields, c.solve, r);
   const Eigen::VectorXd exact = Eigen::VectorXd::Constant(run.geometry.size(), c.E0 / (1 - c.rho));
   r.error_bound = uniform_bound(c.rho, r.row_sum_min, r.row_sum_max, run.residual_max, exact[0]);
   r.tolerance = c.tolerance > 0 ? c.tolerance : 5e-3;

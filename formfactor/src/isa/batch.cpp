@@ -138,36 +138,17 @@ void eval_centroid(const SoA& s, const int* sidx, const int* tidx, int count, do
     const vd cix = gather(s.cx, S), ciy = gather(s.cy, S), ciz = gather(s.cz, S);
     const vd nix = gather(s.nx, S), niy = gather(s.ny, S), niz = gather(s.nz, S);
     vd F = point_quad(cix, ciy, ciz, nix, niy, niz, q);
-    // Second-order correction (1/2) tr(M_s Hess K) A_t, as detail::hessian_correction.
-    const vd cjx = gather(s.cx, T), cjy = gather(s.cy, T), cjz = gather(s.cz, T);
-    const vd njx = gather(s.nx, T), njy = gather(s.ny, T), njz = gather(s.nz, T);
-    const vd ux = cix - cjx, uy = ciy - cjy, uz = ciz - cjz;
-    const vd uu = ux * ux + uy * uy + uz * uz;
-    const vd A = -(nix * ux + niy * uy + niz * uz), nu = njx * ux + njy * uy + njz * uz;
-    const vd mxx = gather(s.M[0], S), myy = gather(s.M[1], S), mzz = gather(s.M[2], S);
-    const vd mxy = gather(s.M[3], S), mxz = gather(s.M[4], S), myz = gather(s.M[5], S);
-    const vd Mux = mxx * ux + mxy * uy + mxz * uz, Muy = mxy * ux + myy * uy + myz * uz,
-             Muz = mxz * ux + myz * uy + mzz * uz;
-    const vd i3 = splat(1.0) / (uu * uu * uu);
-    const vd tr = (-8 * (njx * Mux + njy * Muy + njz * Muz) - 4 * nu * (mxx + myy + mzz) +
-                   24 * nu * (ux * Mux + uy * Muy + uz * Muz) / uu) * i3;
-    F += (0.5 / kPi) * gather(s.area, T) * A * tr;
+    // Second-order correction (1/2) tr(M_s Hess K) A_t (tiers.hpp, shared with the scalar path).
+    const Moments<vd> Ms{gather(s.M[0], S), gather(s.M[1], S), gather(s.M[2], S),
+                         gather(s.M[3], S), gather(s.M[4], S), gather(s.M[5], S)};
+    F += centroid_hessian_correction(cix - gather(s.cx, T), ciy - gather(s.cy, T), ciz - gather(s.cz, T), nix, niy, niz,
+                                     gather(s.nx, T), gather(s.ny, T), gather(s.nz, T), Ms, gather(s.area, T));
     for (int k = 0; k < W && b + k < count; ++k) out[b + k] = F[k];
   }
 }
 
-// Second-order corrections of the kernel at the centroids, u = c_s - c_t (as detail::far_field and
-// hessian_correction in pair.cpp).
-struct Moments {
-  vd xx, yy, zz, xy, xz, yz;
-  vd mul_dot(vd ax, vd ay, vd az, vd bx, vd by, vd bz) const {  // a . M b
-    return ax * (xx * bx + xy * by + xz * bz) + ay * (xy * bx + yy * by + yz * bz) + az * (xz * bx + yz * by + zz * bz);
-  }
-  vd trace() const { return xx + yy + zz; }
-};
-
-int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, std::int8_t* rest_code, int* rest_j,
-             long long* counts) {
+int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, double* err, std::int8_t* code,
+             std::int8_t* rest_code, int* rest_j, long long* counts) {
   const SoA s = soa;  // a local copy: stores through val cannot alias its pointers, so they stay in registers
   int nrest = 0;
   vl c_culled = vl{}, c_t0 = vl{};
@@ -179,10 +160,19 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, std
     qiy[c] = s.qy[c][i];
     qiz[c] = s.qz[c][i];
   }
-  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.rho[i];
+  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.radius[i];
   const double fi = s.fast[i], symi = s.sym[i];
-  const double Mi[6] = {s.M[0][i], s.M[1][i], s.M[2][i], s.M[3][i], s.M[4][i], s.M[5][i]};
+  const Moments<vd> MI{splat(s.M[0][i]), splat(s.M[1][i]), splat(s.M[2][i]),
+                       splat(s.M[3][i]), splat(s.M[4][i]), splat(s.M[5][i])};
   for (int j = j0; j < j1; j += W) {
+    const int n = j1 - j < W ? j1 - j : W;
+    auto store = [&](double* dst, vd v) {
+      if (n < W) {
+        for (int k = 0; k < n; ++k) dst[j - j0 + k] = v[k];
+      } else {
+        std::memcpy(dst + (j - j0), &v, sizeof v);
+      }
+    };
     // Corners of j against i's plane, corners of i against j's plane.
     vd smin = splat(INFINITY), smax = splat(-INFINITY), tmin = smin, tmax = smax;
     const vd njx = load(s.nx + j), njy = load(s.ny + j), njz = load(s.nz + j), oj = load(s.off + j);
@@ -194,18 +184,21 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, std
       tmin = vmin(tmin, tc);
       tmax = vmax(tmax, tc);
     }
-    const int n = j1 - j < W ? j1 - j : W;
     vl valid = vl{} - 1;
     for (int k = n; k < W; ++k) valid[k] = 0;
     const vl fast = load(s.fast + j) * fi > 0.5;
     const vl culled = fast & ((smax <= eps) | (tmax <= eps));  // polygons off the fast path are re-tested
     if (!any(valid & ~culled)) {  // a whole batch back to back or coplanar (common: same wall)
-      for (int k = 0; k < n; ++k) val[j - j0 + k] = 0;
+      for (int k = 0; k < n; ++k) {
+        val[j - j0 + k] = 0;
+        err[j - j0 + k] = 0;
+        code[j - j0 + k] = kCodeCulled;
+      }
       c_culled -= valid;
       continue;
     }
     const vl straddle = (smin < -eps) | (tmin < -eps);
-    const vd Aj = load(s.area + j), rj = load(s.rho + j);
+    const vd Aj = load(s.area + j), rj = load(s.radius + j);
     const vl swap = Aj < Ai;  // the error model integrates from the smaller patch
     const vd rs = sel(swap, rj, splat(ri)), rt = sel(swap, splat(ri), rj), At = sel(swap, splat(Ai), Aj);
     const vd symj = load(s.sym + j);
@@ -213,60 +206,42 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, std
     const vd cjx = load(s.cx + j), cjy = load(s.cy + j), cjz = load(s.cz + j);
     // u = c_i - c_j
     const vd ux = cix - cjx, uy = ciy - cjy, uz = ciz - cjz;
-    const vd uu = ux * ux + uy * uy + uz * uz;
-    const vd d = vsqrt(uu) - rt;
-    const vd dd = sel(d > 0, d, splat(1.0));
-    const vd inv_dd = splat(1.0) / dd;
-    const vd r = rs * inv_dd, q = rt * inv_dd, S = At * inv_dd * inv_dd * (1 / kPi);
-    const vl near = (d <= 0) | (r > kMaxAreaRatio);
-    const vd r2 = r * r, r3 = r2 * r, r4 = r2 * r2, q2 = q * q;
-    auto C = [&](int m) { return sel(ssym, splat(kTierConstant[m][1]), splat(kTierConstant[m][0])); };
-    const vd rp = sel(ssym, r4, r3);
-    const vd e0 = C(0) * S * (rp + sel(tsym, q2 * q2, q2 * q) + r2 * q2);
-    const vl live = ~(culled | straddle | near) & fast & valid;
+    const vd D = vsqrt(ux * ux + uy * uy + uz * uz);
+    const TierInput<vd> in = tier_input(D, rs, rt, At);  // tiers.hpp, shared with pair_scalar
+    const vl live = (vl)tier_eligible(D, rt, in) & ~(culled | straddle) & fast & valid;
+    const vd e0 = tier0_error(in, ssym, tsym);
     const vl t0 = live & (e0 <= tol);
-    vd tier = splat(0);
-    if (any(live & ~t0)) {  // only then the costlier rules' estimates (exponents 2m, or 2m - 1)
-      const vd r8 = r4 * r4;
-      const vd e1 = C(1) * S * (rp + r2 * q2);
-      const vd e2 = C(2) * S * rp;
-      const vd e3 = C(3) * S * rp * r2;
-      const vd e4 = C(4) * S * rp * r4;
-      const vd e5 = C(5) * S * rp * r8;
-      const vd e6 = C(6) * S * rp * r8 * r4;
-      tier = sel(e6 <= tol, splat(6), splat(7));
-      tier = sel(e5 <= tol, splat(5), tier);
-      tier = sel(e4 <= tol, splat(4), tier);
-      tier = sel(e3 <= tol, splat(3), tier);
-      tier = sel(e2 <= tol, splat(2), tier);
-      tier = sel(e1 <= tol, splat(1), tier);
+    vd tier = splat(0), est = e0;
+    if (any(live & ~t0)) {  // only then the costlier rules' estimates
+      vd e[kTiers];
+      tier_errors(in, ssym, e);
+      tier = splat(7);
+      for (int t = kTiers - 1; t >= 1; --t) {
+        tier = sel(e[t] <= tol, splat(t), tier);
+        est = sel(e[t] <= tol, e[t], est);
+      }
       tier = sel(e0 <= tol, splat(0), tier);
+      est = sel(e0 <= tol, e0, est);
     }
-    const vl slow = (~fast) | straddle | near | (tier > 6.5);
+    const vl slow = (~fast) | straddle | ~live | (tier > 6.5);
     const vd cd = sel(~fast, splat(kCodeSlow),
                       sel(culled, splat(kCodeCulled),
                           sel(slow, splat(kCodeSlow), tier + 1 + sel(swap, splat(kCodeSwap), splat(0)))));
     vd out = splat(0);
     if (any(t0)) {
       // Tier 0, the far-field expansion, is symmetric in (i, j): evaluated directly as F_ij with i as the
-      // "source", A = n_i.(c_j - c_i), nu = n_j.u (as detail::far_field).
-      const Moments MJ{load(s.M[0] + j), load(s.M[1] + j), load(s.M[2] + j),
-                       load(s.M[3] + j), load(s.M[4] + j), load(s.M[5] + j)};
-      const Moments MI{splat(Mi[0]), splat(Mi[1]), splat(Mi[2]), splat(Mi[3]), splat(Mi[4]), splat(Mi[5])};
-      const vd inv = splat(1.0) / sel(uu > 0, uu, splat(1.0));
-      const vd i3 = inv * inv * inv;
-      const vd A = -(nix * ux + niy * uy + niz * uz), nu = njx * ux + njy * uy + njz * uz;
-      const vd src = (-8 * MI.mul_dot(njx, njy, njz, ux, uy, uz) - 4 * nu * MI.trace() +
-                      24 * nu * MI.mul_dot(ux, uy, uz, ux, uy, uz) * inv) * i3;  // tr(M_i Hess_x g)
-      const vd tgt = (8 * MJ.mul_dot(splat(nix), splat(niy), splat(niz), ux, uy, uz) - 4 * A * MJ.trace() +
-                      24 * A * MJ.mul_dot(ux, uy, uz, ux, uy, uz) * inv) * i3;   // tr(M_j Hess_y g)
-      out = sel(t0, (Aj * (1 / kPi)) * (A * nu * inv * inv + 0.5 * A * src + 0.5 * nu * tgt), splat(0));
+      // "source" (tiers.hpp, as far_field in pair.cpp).
+      const Moments<vd> MJ{load(s.M[0] + j), load(s.M[1] + j), load(s.M[2] + j),
+                           load(s.M[3] + j), load(s.M[4] + j), load(s.M[5] + j)};
+      const vd uxs = sel(t0, ux, splat(1.0));  // keep culled or coincident lanes finite
+      out = sel(t0, far_field_value(uxs, uy, uz, splat(nix), splat(niy), splat(niz), njx, njy, njz, MI, MJ, Aj),
+                splat(0));
     }
-    if (n < W) {
-      for (int k = 0; k < n; ++k) val[j - j0 + k] = out[k];
-    } else {
-      std::memcpy(val + (j - j0), &out, sizeof out);
-    }
+    store(val, out);
+    // Error bound on F_ij: the estimate bounds F_st; F_ij = F_ji A_j / A_i when j is the source.
+    const vd e_ij = sel(slow | culled, splat(0), sel(swap, est * Aj / Ai, est));
+    store(err, e_ij);
+    for (int k = 0; k < n; ++k) code[j - j0 + k] = static_cast<std::int8_t>(t0[k] ? 1 + (swap[k] ? kCodeSwap : 0) : cd[k]);
     c_culled -= culled & valid & (cd < 0.5);  // masks are -1 where true
     c_t0 -= t0 & valid;
     const vl rest = valid & (cd > 0.5) & ~t0;
@@ -287,51 +262,77 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, std
   return nrest;
 }
 
-// The reciprocal direction of an I x J block: F(j, i) = F(i, j) A_i / A_j, with row sums and checks.
+// The reciprocal direction of an I x J block: F(j, i) = F(i, j) A_i / A_j, with row sums, the rows' error
+// bounds and the entries outside [0, 1].
 void transpose(const double* area, double* F, long long stride, int i0, int i1, int j0, int j1, bool diag,
-               double* row_i, double* row_j, long long* outside, double* recip) {
-  long long out_total = 0;
-  double rmax = *recip;
+               const double* err, int err_stride, double* row_i, double* row_j, double* err_i, double* err_j,
+               long long* outside, long long* roundoff) {
+  long long out_total = 0, round_total = 0;
+  // An entry outside [0, 1] by no more than its error bound (+ 1e-14, rounding) is set to 0 or 1 and counted.
+  auto fix = [&](double& f, double e) {
+    const double excess = f < 0 ? -f : f - 1;
+    if (!(excess > 0)) return;
+    if (excess <= e + 1e-14) {
+      f = f < 0 ? 0.0 : 1.0;
+      ++round_total;
+    } else {
+      ++out_total;
+    }
+  };
   for (int i = i0; i < i1; ++i) {
     const int js = diag ? i + 1 : j0;
     if (js >= j1) continue;
-    const double* Fi = F + (long long)i * stride;
+    double* Fi = F + (long long)i * stride;
+    const double* Ei = err + (long long)(i - i0) * err_stride;
     const double Ai = area[i];
-    double rowi = 0;
+    double rowi = 0, erri = 0;
     int j = js;
-    vd acc = splat(0), rm = splat(rmax);
-    vl oc = vl{};
+    vd acc = splat(0), eacc = splat(0);
     for (; j + W <= j1; j += W) {
-      const vd fij = load(Fi + j), Aj = load(area + j);
-      const vd fji = fij * Ai / Aj;
+      vd fij = load(Fi + j);
+      const vd Aj = load(area + j), eij = load(Ei + (j - j0));
+      const vd ratio = Ai / Aj;
+      vd fji = fij * ratio;
+      if (any((fij < 0) | (fij > 1) | (fji < 0) | (fji > 1))) {
+        for (int k = 0; k < W; ++k) {
+          double a = fij[k], b = fji[k];
+          fix(a, eij[k]);
+          fix(b, eij[k] * ratio[k]);
+          fij[k] = a;
+          fji[k] = b;
+        }
+        std::memcpy(Fi + j, &fij, sizeof fij);
+      }
       for (int k = 0; k < W; ++k) F[(long long)(j + k) * stride + i] = fji[k];
       vd rj = load(row_j + (j - j0)) + fji;
       std::memcpy(row_j + (j - j0), &rj, sizeof rj);
+      vd ej = load(err_j + (j - j0)) + eij * ratio;
+      std::memcpy(err_j + (j - j0), &ej, sizeof ej);
       acc += fij;
-      oc -= (fij < 0) | (fij > 1) | (fji < 0) | (fji > 1);
-      const vd ai = Ai * fij, aj = Aj * fji, mx = vmax(vabs(ai), vabs(aj));
-      rm = vmax(rm, sel(mx > 0, vabs(ai - aj) / sel(mx > 0, mx, splat(1.0)), splat(0)));
+      eacc += eij;
     }
     for (int k = 0; k < W; ++k) {
       rowi += acc[k];
-      out_total += oc[k];
-      rmax = rm[k] > rmax ? rm[k] : rmax;
+      erri += eacc[k];
     }
     for (; j < j1; ++j) {
-      const double fij = Fi[j], Aj = area[j], fji = fij * Ai / Aj;
+      const double Aj = area[j], ratio = Ai / Aj, eij = Ei[j - j0];
+      double fij = Fi[j], fji = fij * ratio;
+      fix(fij, eij);
+      fix(fji, eij * ratio);
+      Fi[j] = fij;
       F[(long long)j * stride + i] = fji;
       row_j[j - j0] += fji;
+      err_j[j - j0] += eij * ratio;
       rowi += fij;
-      out_total += (fij < 0 || fij > 1) + (fji < 0 || fji > 1);
-      const double ai = Ai * fij, aj = Aj * fji, mx = __builtin_fmax(__builtin_fabs(ai), __builtin_fabs(aj));
-      if (mx > 0) rmax = __builtin_fmax(rmax, __builtin_fabs(ai - aj) / mx);
+      erri += eij;
     }
     row_i[i - i0] += rowi;
+    err_i[i - i0] += erri;
   }
   *outside += out_total;
-  *recip = rmax;
+  *roundoff += round_total;
 }
-
 
 }  // namespace
 

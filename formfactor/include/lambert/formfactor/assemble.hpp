@@ -6,16 +6,23 @@
 // A pair is integrated by the cheapest method whose error estimate is <= tolerance:
 //   far_field         centroid-to-centroid kernel + second-order (Hessian) terms on both patches
 //   centroid_hessian  analytic point-to-polygon from the source centroid + Hessian term
-//   gauss4/9/16       m x m Gauss outer rule over the source, analytic (contour) inner integral
-// chosen a priori from size/distance (estimate C S r^p: S = A_t/(pi d^2), r = rho_s/d; C = 4x the worst
-// ratio seen on 40,000 random pairs; on 6,000 further random pairs the largest error was 0.15 x tolerance),
-//   contour           the rest: touching pairs, pairs within 2.5 source radii, pairs cutting each other's
+//   gauss4/9/16/36/64 m x m Gauss outer rule over the source, analytic (contour) inner integral
+// chosen a priori from size/distance (estimate C S r^p: S = A_t/(pi d^2), r = R_s/d with R_s the source's
+// circumradius; C = 4x the worst ratio seen on 40,000 random pairs; src/tiers.hpp, one implementation for the
+// scalar and SIMD paths),
+//   contour           the rest: touching pairs, pairs closer than 2 source radii (source centroid to the
+//                     target's bounding sphere), pairs cutting each other's
 //                     plane, pairs no rule fits: mutual clipping, then the double line integral with adaptive
 //                     Gauss-Kronrod, stopped when its (conservative) error estimate is <= tolerance.
 // Triangles and convex quads run in SIMD batches; other polygons take the same rules in scalar code.
-// Default 1e-8: catalogue values come out within ~1e-10, every entry of a closed cube within 1e-9.
+// The far-field tiers' errors have one sign along a row, so a row sum's error grows with the number of such
+// entries; the solve amplifies a row-sum error delta to a radiance error of about rho delta / (1 - rho)
+// (docs/physics.md). Hence the automatic tolerance (Options::tolerance = 0) follows the scene's largest
+// reflectance: default_tolerance() below. Measured errors and costs: docs/benchmarks.md, docs/accuracy.md.
 // Visibility is NOT covered by `tolerance`: the visible fraction is a ray estimate (rays_per_pair), and only
-// pairs whose segments may actually be blocked are ray-tested.
+// pairs whose segments may actually be blocked are ray-tested; Stats::row_visibility_sigma states its error.
+// What each assembly admits (per-row error bounds, an independent reciprocity check, entries outside [0, 1])
+// is reported in Stats; check.hpp checks row sums independently with rays.
 // Storage: double (8 N^2 bytes), see dense.hpp.
 #include <cstddef>
 #include <functional>
@@ -49,7 +56,12 @@ struct Reuse {
 };
 
 struct Options {
-  double tolerance = 1e-8;  // absolute error bound on each unoccluded F_ij (see above); > 0
+  // Absolute error bound on each unoccluded F_ij (see above); > 0, or 0 = automatic: default_tolerance(
+  // max_reflectance) (Stats::tolerance reports the value used).
+  double tolerance = 0;
+  // Largest reflectance of the scene over patches and colour channels, in [0, 1); < 0 = unknown (then the
+  // automatic tolerance is that of max_reflectance <= 0.9). Only the automatic tolerance uses it.
+  double max_reflectance = -1;
   Rule rule = Rule::Adaptive;
   int order = 1;            // Rule::Gauss: points per side of the source rule, 1..8
   const Reuse* reuse = nullptr;  // null: compute every pair
@@ -62,10 +74,25 @@ struct Options {
   // Occlusion caster; null = Embree over the potential occluders. Tests inject the brute-force one.
   std::shared_ptr<const Visibility> caster;
   bool cull_occlusion = true;  // false: ray-test every visible pair, even those shaft culling proves clear (tests)
+  // Independent reciprocity check (Stats::reciprocity_*): about this many sampled pairs per method; 0 = off.
+  int reciprocity_samples = 40;
+  // Fault injection, for the tests of the checks only: every unoccluded F computed by the method named here
+  // ("far_field", "gauss9", "contour", ...; see Stats::pairs_by_method) is multiplied by (1 + fault_relative),
+  // in both directions. Empty = none.
+  std::string fault_method;
+  double fault_relative = 0;
 };
 
+// The automatic form-factor tolerance for a scene whose largest reflectance is max_reflectance (< 0 =
+// unknown, taken as 0.9). A per-entry error that has one sign along a row (the far-field tiers' do) adds up to
+// a row-sum error delta, which the solve amplifies to a radiance error of about rho delta / (1 - rho)
+// (docs/physics.md); the tolerance therefore shrinks with 1 - rho above 0.9 and stays at 1e-8 below.
+// The formula and its measured effect are in docs/benchmarks.md ("Default form-factor tolerance").
+double default_tolerance(double max_reflectance);
+
 struct Stats {
-  // What the assembly used (Options, resolved): the rule's name (to_string), tolerance, visibility, rays.
+  // What the assembly used (Options, resolved): the rule's name (to_string), the per-entry tolerance
+  // (Options::tolerance or the automatic one), visibility, rays per pair.
   std::string rule = "adaptive";
   double tolerance = 0;
   bool visibility = true;
@@ -80,18 +107,51 @@ struct Stats {
   bool scene_can_occlude = false;  // false: no patch can block another (convex enclosure), no rays at all
   int occluders = 0;               // patches that can block something (the ray-tracing scene)
   double row_sum_min = 0, row_sum_max = 0, row_sum_mean = 0;
-  double reciprocity_residual = 0;  // max |A_i F_ij - A_j F_ji| / max(A_i F_ij, A_j F_ji) over stored entries
-  long long entries_outside_unit = 0;  // F_ij < 0 or > 1 (never clamped); must be 0
+
+  // Error admitted by the assembly, per row i (dimensionless, like F). Reused pairs contribute 0.
+  //   row_error_bound[i]: sum_j of the integration error bound of F_ij (the a-priori model's estimate, or the
+  //     adaptive contour's error estimate; for F_ij obtained by reciprocity, the bound scaled by A_j / A_i).
+  //     The unoccluded integrals' errors; a bound, not a statistical estimate. Empty for the fixed rules
+  //     (point, gaussN), which carry no error estimate (then row_error_bound_max = -1).
+  //   row_visibility_sigma[i]: sqrt(sum_j sigma_ij^2), sigma_ij the standard error of the ray estimate of F_ij's
+  //     visible fraction times the unoccluded F_ij, sigma^2 = sum_k w_k^2 (V_k - v)^2 / (sum_k w_k)^2 over the
+  //     kernel-weighted rays w_k (the plain-sampling formula: stratification makes the true error smaller;
+  //     pairs whose rays all agree get 0, although a shadow missed by every ray is then not seen). Rows
+  //     combined as independent errors. Zero when nothing is ray-tested.
+  // A caller can state the row-sum error as delta_i <= row_error_bound[i] + k row_visibility_sigma[i] (k ~ 3),
+  // and a radiance error as about rho delta / (1 - rho (1 + delta)).
+  std::vector<double> row_error_bound, row_visibility_sigma;
+  double row_error_bound_max = 0, row_visibility_sigma_max = 0;  // maxima over rows
+
+  // Independent reciprocity check (adaptive rule only; 0 pairs for the fixed rules): on a deterministic sample
+  // of computed pairs (every method represented, up to Options::reciprocity_samples each, independent of the
+  // thread count), A_s F_st as assembled (s the smaller patch, the integrated direction; the unoccluded value,
+  // taken before visibility: the check is on the integral, not on the ray estimate) is compared with A_t F_ts
+  // integrated independently from the other patch by the adaptive double contour integral, t's edges outer
+  // (to 1e-2 x the tolerance).
+  long long reciprocity_check_pairs = 0;
+  double reciprocity_residual = 0;      // max |A_s F_st - A_t F_ts| / max(A_s F_st, A_t F_ts) over the sample
+  // max |F_st - F_ts A_t / A_s| / (error bound of F_st + the reference's error + 1e-14): <= 1 when every
+  // sampled entry is within its stated bound; > 1 means some method does not meet its tolerance.
+  double reciprocity_bound_ratio = 0;
+  std::string reciprocity_worst_method;  // the method of the pair with the largest bound ratio
+  std::map<std::string, long long> reciprocity_pairs_by_method;
+
+  // Entries F_ij outside [0, 1] (never clamped silently):
+  long long entries_roundoff = 0;      // outside by at most the entry's error bound + 1e-14: set to 0 or 1, counted
+  long long entries_outside_unit = 0;  // outside by more (left as computed): untrustworthy, must be 0
   long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance
+  long long pairs_no_visible_sample = 0;  // ray-tested pairs where no sample pair faced each other: F set to 0
   long long pairs_reused = 0;          // copied from Options::reuse (not computed, no rays)
   // "setup", "bvh", "form_factors" (integration + visibility), "visibility" (its share of form_factors,
-  // from thread times), "stats"
+  // from thread times), "stats" (row sums, the reciprocity check)
   std::map<std::string, double> seconds;
   std::size_t bytes = 0;                  // dense matrix size
 };
 
 // N x N matrix, F(i, j) from patch i to patch j, F(i, i) = 0. Throws lambert::InputError (with the needed
-// and allowed bytes) before allocating if N^2 * 8 bytes exceeds max_bytes, if tolerance <= 0, if the Gauss
+// and allowed bytes) before allocating if N^2 * 8 bytes exceeds max_bytes, if tolerance < 0, if
+// max_reflectance >= 1, if fault_method names no method, if the Gauss
 // order is outside 1..8, or if reuse does not match (index sizes, indices out of range or repeated).
 // "adaptive", "point", "gauss1".."gauss8" <-> (rule, order); parse throws InputError naming the choices.
 std::string to_string(Rule rule, int order);

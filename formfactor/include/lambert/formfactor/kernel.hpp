@@ -1,6 +1,6 @@
 #pragma once
 // Unoccluded form factors between planar polygons. Lengths in metres; form factors are dimensionless.
-// Conventions (see /shared/PHYSICS.md): a polygon's front side is given by the right-hand rule on its corner
+// Conventions (see docs/physics.md): a polygon's front side is given by the right-hand rule on its corner
 // order; only the front emits and receives (one-sided), so a polygon seen from behind contributes 0.
 #include <span>
 #include <string>

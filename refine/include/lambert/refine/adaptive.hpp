@@ -19,6 +19,7 @@
 // "solve_not_converged"; the result then has solution.converged == false), since indicators computed from
 // it would be meaningless.
 // Memory: the previous and the new matrix coexist while assembling (2 x 8 N^2 bytes).
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,7 @@ struct AdaptiveResult {
   mesh::PolygonSoup soup;               // the refined soup of the last round
   mesh::Scene scene;                    // built from it
   solver::Solution solution;            // on scene
+  std::shared_ptr<const formfactor::DenseMatrixOperator> final_matrix;  // the form factors of scene
   std::vector<int> patches_per_round;   // scene patches solved in each round
   std::vector<double> max_indicator;    // per round: largest local indicator eta_p (0 if nothing found)
   std::vector<double> error_estimate;   // per round: E

@@ -1,0 +1,95 @@
+// The per-thread counters of the tiles, gathered into Stats.
+#include <algorithm>
+#include <cmath>
+
+#include <tbb/parallel_for.h>
+
+#include "assembler.hpp"
+
+namespace lambert::formfactor::detail {
+
+void Assembler::collect_stats(const std::vector<Counters*>& counters) {
+  const int n = g_.size();
+  std::vector<double> rows(n, 0.0);
+  st_.row_error_bound.assign(n, 0.0);
+  st_.row_visibility_sigma.assign(n, 0.0);
+  std::array<long long, kMethodCount> by{};
+  long long fixed = 0;
+  double tile_seconds = 0, visibility_seconds = 0;
+  for (const Counters* cp : counters) {
+    const Counters& c = *cp;
+    tile_seconds += c.tile_seconds;
+    visibility_seconds += c.visibility_seconds;
+    for (int i = 0; i < n; ++i) {
+      rows[i] += c.row_sum[i];
+      st_.row_error_bound[i] += c.row_err[i];
+      st_.row_visibility_sigma[i] += c.row_vis_var[i];
+    }
+    st_.pairs_orientation_culled += c.culled;
+    st_.pairs_shaft_culled += c.shaft_culled;
+    st_.pairs_ray_tested += c.ray_tested;
+    st_.rays_cast += c.rays;
+    st_.pairs_over_tolerance += c.over_tolerance;
+    st_.pairs_no_visible_sample += c.no_visible_sample;
+    st_.pairs_reused += c.reused;
+    fixed += c.fixed;
+    st_.entries_outside_unit += c.outside;
+    st_.entries_roundoff += c.roundoff;
+    for (int m = 0; m < kMethodCount; ++m) by[m] += c.by_method[m];
+  }
+  for (int m = 0; m < kMethodCount; ++m)
+    if (by[m]) st_.pairs_by_method[kMethodNames[m]] = by[m];
+  if (fixed) st_.pairs_by_method[to_string(o_.rule, o_.order)] = fixed;
+  if (st_.pairs_reused) st_.pairs_by_method["reused"] = st_.pairs_reused;
+  for (double& v : st_.row_visibility_sigma) v = std::sqrt(v);
+  if (o_.rule != Rule::Adaptive) {
+    st_.row_error_bound.clear();  // fixed rules carry no error estimate
+    st_.row_error_bound_max = -1;
+  } else {
+    for (double v : st_.row_error_bound) st_.row_error_bound_max = std::max(st_.row_error_bound_max, v);
+  }
+  for (double v : st_.row_visibility_sigma) st_.row_visibility_sigma_max = std::max(st_.row_visibility_sigma_max, v);
+  if (n > 0) {
+    st_.row_sum_min = *std::min_element(rows.begin(), rows.end());
+    st_.row_sum_max = *std::max_element(rows.begin(), rows.end());
+    double sum = 0;
+    for (double r : rows) sum += r;
+    st_.row_sum_mean = sum / n;
+  }
+  // Wall-time share of visibility inside "form_factors" (integration and visibility interleave per tile).
+  st_.seconds["visibility"] = tile_seconds > 0 ? st_.seconds["form_factors"] * visibility_seconds / tile_seconds : 0.0;
+}
+
+void Assembler::check_reciprocity(const std::vector<Counters*>& counters) {
+  // The sample: per method, the reciprocity_samples candidates with the smallest keys over all threads
+  // (keys depend on the tile only, so the sample does not depend on the thread count).
+  std::vector<RecipCandidate> sample;
+  for (int m = 0; m < kMethodCount; ++m) {
+    std::vector<RecipCandidate> all;
+    for (const Counters* c : counters) all.insert(all.end(), c->recip_candidates[m].begin(), c->recip_candidates[m].end());
+    std::sort(all.begin(), all.end());
+    if (int(all.size()) > o_.reciprocity_samples) all.resize(size_t(o_.reciprocity_samples));
+    sample.insert(sample.end(), all.begin(), all.end());
+  }
+  const PatchData& P = prep_->P;
+  std::vector<double> residual(sample.size(), 0.0), ratio(sample.size(), 0.0);
+  tbb::parallel_for(size_t(0), sample.size(), [&](size_t k) {
+    const RecipCandidate& rc = sample[k];
+    const double ref_tol = 1e-2 * tol_;
+    const ReverseIntegral r = reverse_integral(P, rc.s, rc.t, ref_tol);
+    const double af = P.area[rc.s] * rc.F, diff = std::abs(af - r.AF), mx = std::max(std::abs(af), std::abs(r.AF));
+    residual[k] = mx > 0 ? diff / mx : 0.0;
+    ratio[k] = diff / P.area[rc.s] / (rc.err + r.error / P.area[rc.s] + 1e-14);
+  });
+  st_.reciprocity_check_pairs = (long long)sample.size();
+  for (size_t k = 0; k < sample.size(); ++k) {
+    ++st_.reciprocity_pairs_by_method[kMethodNames[sample[k].method]];
+    st_.reciprocity_residual = std::max(st_.reciprocity_residual, residual[k]);
+    if (ratio[k] >= st_.reciprocity_bound_ratio) {
+      st_.reciprocity_bound_ratio = ratio[k];
+      st_.reciprocity_worst_method = kMethodNames[sample[k].method];
+    }
+  }
+}
+
+}  // namespace lambert::formfactor::detail
