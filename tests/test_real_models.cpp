@@ -11,7 +11,17 @@
 #include <string>
 #include <vector>
 
+#include <fstream>
+#include <unistd.h>
+
+#include <vtkCellData.h>
+#include <vtkDataArray.h>
+#include <vtkSmartPointer.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkXMLUnstructuredGridReader.h>
+
 #include "lambert/formfactor/assemble.hpp"
+#include "lambert/io/vtk.hpp"
 #include "lambert/io/readers.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/shapes.hpp"
@@ -429,4 +439,51 @@ TEST(RealModelsExample, StoreyShutRoomStaysDarkFromObjAndFromStl) {
     lit_mean /= lit_n;
     EXPECT_LE(dark_max, 1e-6 * lit_mean) << (stl ? "stl" : "obj") << ": lit mean " << lit_mean;
   }
+}
+
+TEST(RealModelsTwoSided, FlagFromMtlAndJsonAndSideArrayInVtu) {
+  const auto dir = std::filesystem::temp_directory_path() / ("lambert_two_sided_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string obj = (dir / "p.obj").string(), mtl = (dir / "p.mtl").string(), json = (dir / "m.json").string();
+  std::ofstream(mtl) << "newmtl thin\nKd 0.5\ntwo_sided 1\nnewmtl lamp\nKe 1\ntwo_sided 0\nnewmtl bad\n";
+  std::ofstream(obj) << "mtllib p.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\n"
+                        "usemtl thin\nf 1 2 3 4\nusemtl lamp\nf 5 6 7\n";
+  PolygonSoup s = io::read_obj(obj);
+  ASSERT_EQ(s.materials.size(), 4u);
+  EXPECT_TRUE(s.materials[s.faces[0].material].two_sided);
+  EXPECT_FALSE(s.materials[s.faces[1].material].two_sided);
+  // --materials: a material made two-sided by name, and a face range made two-sided inline.
+  std::ofstream(json) << R"({"materials": {"lamp": {"two_sided": true}}, "faces": [{"range": [0, 0], "two_sided": false}]})";
+  io::apply_materials_json(s, json);
+  EXPECT_FALSE(s.materials[s.faces[0].material].two_sided);
+  EXPECT_TRUE(s.materials[s.faces[1].material].two_sided);
+  // A value other than true/false, or two_sided with a bad value in the MTL: errors naming the place.
+  std::ofstream(json) << R"({"materials": {"lamp": {"two_sided": 1}}})";
+  try {
+    io::apply_materials_json(s, json);
+    ADD_FAILURE() << "two_sided: 1 accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("two_sided"), std::string::npos) << e.what();
+  }
+  std::ofstream(mtl) << "newmtl thin\ntwo_sided yes\n";
+  try {
+    io::read_obj(obj);
+    ADD_FAILURE() << "two_sided yes accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("p.mtl:2"), std::string::npos) << e.what();
+  }
+  // The .vtu says which side a cell is: the lamp (face 1) is now two-sided -> patches 1 (front), 2 (back).
+  const Scene scene = prepare_and_build(s, {});
+  ASSERT_EQ(scene.patches(), 3);
+  const std::string vtu = (dir / "p.vtu").string();
+  io::write_vtu(vtu, scene, ColorField::Zero(3, 3), ColorField::Zero(3, 3));
+  auto reader = vtkSmartPointer<vtkXMLUnstructuredGridReader>::New();
+  reader->SetFileName(vtu.c_str());
+  reader->Update();
+  vtkDataArray* side = reader->GetOutput()->GetCellData()->GetArray("side");
+  ASSERT_NE(side, nullptr);
+  EXPECT_EQ(side->GetTuple1(0), 0);
+  EXPECT_EQ(side->GetTuple1(1), 0);
+  EXPECT_EQ(side->GetTuple1(2), 1);
+  std::filesystem::remove_all(dir);
 }
