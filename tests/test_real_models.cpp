@@ -487,3 +487,25 @@ TEST(RealModelsTwoSided, FlagFromMtlAndJsonAndSideArrayInVtu) {
   EXPECT_EQ(side->GetTuple1(2), 1);
   std::filesystem::remove_all(dir);
 }
+
+TEST(RealModelsCli, OrientFlagIsAcceptedAndCheckedAndNothingIsTurnedRoundInTheStorey) {
+  auto run = [](const std::string& args, std::string& out) {
+    const std::string cmd = std::string(LAMBERT_BINARY) + " " + args + " 2>&1";
+    FILE* p = popen(cmd.c_str(), "r");
+    out.clear();
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+    const int st = pclose(p);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  };
+  const std::string storey = std::string(LAMBERT_SOURCE_DIR) + "/examples/storey.obj";
+  std::string out;
+  for (const char* mode : {"file", "consistent", "visibility"}) {
+    EXPECT_EQ(run("info " + storey + " --orient " + mode, out), 0) << mode << "\n" << out;
+    EXPECT_EQ(out.find("reoriented"), std::string::npos) << mode << "\n" << out;
+    EXPECT_EQ(out.find("inconsistent orientation"), std::string::npos) << "contact lines are not orientation errors\n" << out;
+  }
+  EXPECT_NE(run("info " + storey + " --orient sideways", out), 0) << out;
+  EXPECT_NE(out.find("--orient"), std::string::npos) << out;
+}

@@ -331,10 +331,21 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
     std::sort(dirs.begin(), dirs.end(), [](const Dir& x, const Dir& y) {
       return x.key != y.key ? x.key < y.key : x.face < y.face;
     });
+    // Only edges that exactly two faces share: where three or more faces meet (a wall standing on a
+    // floor line, a partition against a wall, after imprinting) some always run the same way.
+    std::map<std::uint64_t, int> uses;
+    for (const auto& d : dirs) {
+      const std::uint64_t a = d.key >> 32, b = d.key & 0xffffffffu;
+      uses[std::min(a, b) << 32 | std::max(a, b)]++;
+    }
+    auto manifold = [&](std::uint64_t key) {
+      const std::uint64_t a = key >> 32, b = key & 0xffffffffu;
+      return uses[std::min(a, b) << 32 | std::max(a, b)] == 2;
+    };
     std::vector<std::uint64_t> bad;  // undirected keys
     size_t ex = dirs.size();
     for (size_t i = 1; i < dirs.size(); ++i)
-      if (dirs[i].key == dirs[i - 1].key) {
+      if (dirs[i].key == dirs[i - 1].key && manifold(dirs[i].key)) {
         const std::uint64_t a = dirs[i].key >> 32, b = dirs[i].key & 0xffffffffu;
         bad.push_back(std::min(a, b) << 32 | std::max(a, b));
         if (ex == dirs.size()) ex = i;
