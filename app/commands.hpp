@@ -18,6 +18,7 @@ struct CommonOptions {
   int threads = 0;  // 0 = all cores
   bool quiet = false;
   bool no_repair = false;      // --no-repair: prepare.repair = false (detection still runs)
+  std::string orient = "visibility";  // --orient: prepare.orient = mesh::parse_orientation(orient)
   bool no_visibility = false;  // --no-visibility: ff.visibility = false
   std::string ff_rule = "adaptive";  // formfactor::parse_rule: adaptive | point | gauss1..gauss8
   std::string method = "auto";       // solver::parse_method

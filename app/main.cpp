@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
 
   app::CommonOptions common;  // every default comes from the libraries' options structs (commands.hpp)
   auto add_common = [&](CLI::App* sub, bool with_output) {
-    sub->add_option("scene", common.scene, "Scene file: .obj (+ .mtl), .ply or .off")->required()->check(CLI::ExistingFile);
+    sub->add_option("scene", common.scene, "Scene file: .obj (+ .mtl), .ply, .off or .stl (binary or ASCII; other extensions by content)")->required()->check(CLI::ExistingFile);
     sub->add_option("--materials", common.materials,
                     "JSON file mapping material names or input-face ranges to reflectance and emission "
                     "(overrides MTL values; see README)")
@@ -78,6 +78,12 @@ int main(int argc, char** argv) {
     sub->add_flag("--no-repair", common.no_repair,
                   "Use the mesh as it is: no welding, degenerate-face removal or re-orientation "
                   "(self-intersections and T-junctions are still reported)");
+    sub->add_option("--orient", common.orient,
+                    "Face orientation repair: file (keep the file's winding), consistent (faces of a connected "
+                    "surface agree with its majority), visibility (also turn a whole surface round when the rest "
+                    "of the scene sees its back)")
+        ->check(CLI::IsMember({"file", "consistent", "visibility"}))
+        ->capture_default_str();
     sub->add_option("--max-edge", common.prepare.max_edge,
                     "Refine: split every edge longer than this (metres) so no patch edge exceeds it; 0 = off")
         ->check(NonNegative)
@@ -185,6 +191,7 @@ int main(int argc, char** argv) {
 
   common.prepare.repair = !common.no_repair;
   common.prepare.max_patches = app::max_patches_in_memory();  // refuse a --max-edge whose patches cannot be solved
+  common.prepare.orient = mesh::parse_orientation(common.orient);
 
   std::optional<tbb::global_control> threads;
   if (common.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(common.threads));

@@ -17,14 +17,16 @@ std::vector<int> potential_occluders(const mesh::PatchGeometry& g) {
   std::vector<int> out;
   if (g.size() == 0) return out;
   double scale = 0;
+  Eigen::AlignedBox3d box;
   // Corners shared by neighbouring patches appear once per patch: deduplicate (exactly) before the hull,
   // duplicates only cost CGAL exact-arithmetic fallbacks.
   std::vector<std::array<double, 3>> uniq;
   uniq.reserve(g.points.size());
   for (const Vec3& p : g.points) {
     uniq.push_back({p.x(), p.y(), p.z()});
-    scale = std::max(scale, p.cwiseAbs().maxCoeff());
+    box.extend(p);
   }
+  scale = box.diagonal().norm();  // the scene's size, not |coordinates|: translation invariant
   std::sort(uniq.begin(), uniq.end());
   uniq.erase(std::unique(uniq.begin(), uniq.end()), uniq.end());
   std::vector<Point> pts;
@@ -68,7 +70,7 @@ std::vector<int> potential_occluders(const mesh::PatchGeometry& g) {
         }
       }
     }
-    if (best - n.dot(g.centroid[p]) < -eps) out.push_back(p);
+    if (n.dot(hv[cur] - g.centroid[p]) < -eps) out.push_back(p);  // a difference first: translation invariant
   }
   return out;
 }

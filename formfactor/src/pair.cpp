@@ -82,8 +82,10 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
   P.offset.resize(n);
   P.M.resize(n);
   P.kind.resize(n);
-  double scale = 0;
-  for (const Vec3& p : g.points) scale = std::max(scale, p.cwiseAbs().maxCoeff());
+  // Relative to the scene's size (bounding-box diagonal), not to |coordinates|: translation invariant.
+  Eigen::AlignedBox3d box;
+  for (const Vec3& p : g.points) box.extend(p);
+  const double scale = box.isEmpty() ? 0.0 : box.diagonal().norm();
   P.scene_eps = 1e-10 * std::max(scale, 1e-300);
   for (int t = 2; t <= std::min(max_tier, 4); ++t) P.rule_off[t].assign(1, 0);
   std::vector<std::array<int, 3>> local;

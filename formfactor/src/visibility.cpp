@@ -21,9 +21,38 @@ namespace {
 
 // Embree's intersect context extended with the two patches to ignore; the context filter sees every
 // candidate hit and rejects hits on those patches, so rays can start and end exactly on the surfaces.
+// Patch planes n . x = d (x relative to a centre): a ray from a point of patch a leaves a's plane, so it
+// can meet a patch in that plane only at its start, where it touches a coincident patch: the back of a
+// two-sided face, or a one-sided face modelled back to back with a. Such hits are not occlusion.
+struct Planes {
+  std::vector<Vec3> n;
+  std::vector<double> d;
+  double eps = 0;  // plane distance tolerance: 1e-9 x the scene's bounding-box diagonal
+  Planes() = default;
+  Planes(const mesh::PatchGeometry& g, const Vec3& centre) {
+    Eigen::AlignedBox3d box;
+    for (const Vec3& v : g.points) box.extend(v);
+    eps = box.isEmpty() ? 0.0 : 1e-9 * box.diagonal().norm();
+    for (int p = 0; p < g.size(); ++p) {
+      n.push_back(g.normal[p]);
+      d.push_back(g.normal[p].dot(g.centroid[p] - centre));
+    }
+  }
+  bool coplanar(int p, int q) const {
+    const double c = n[p].dot(n[q]);
+    if (std::abs(c) < 1 - 1e-9) return false;
+    return std::abs(d[p] - (c > 0 ? d[q] : -d[q])) <= eps;
+  }
+  // A hit on patch p does not block a ray between patches a and b.
+  bool ignored(int p, int a, int b) const {
+    return p == a || p == b || (a >= 0 && coplanar(p, a)) || (b >= 0 && coplanar(p, b));
+  }
+};
+
 struct IgnoreContext {
   RTCIntersectContext ctx;
   const int* tri_patch;
+  const Planes* planes;
   int a, b;
 };
 
@@ -32,7 +61,7 @@ void ignore_filter(const RTCFilterFunctionNArguments* args) {
   for (unsigned k = 0; k < args->N; ++k) {
     if (args->valid[k] == 0) continue;
     const int patch = c->tri_patch[RTCHitN_primID(args->hit, args->N, k)];
-    if (patch == c->a || patch == c->b) args->valid[k] = 0;
+    if (c->planes->ignored(patch, c->a, c->b)) args->valid[k] = 0;
   }
 }
 
@@ -54,6 +83,13 @@ class EmbreeVisibility final : public Visibility {
     }
     size_t ntri = 0;
     for (int p : patches) ntri += size_t(g.triangle_offsets[p + 1] - g.triangle_offsets[p]);
+    // Embree works in float: coordinates relative to the centre of the scene's bounding box, so a
+    // scene 5e6 m from the origin (georeferenced) is traced as precisely as the same scene at the
+    // origin (float spacing ~ 1e-7 x the scene's size instead of ~0.5 m). Rays are shifted the same way.
+    Eigen::AlignedBox3d box;
+    for (const Vec3& v : g.points) box.extend(v);
+    if (!box.isEmpty()) centre_ = box.center();
+    planes_ = Planes(g, centre_);
     if (ntri > 0) {
       RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
       auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
@@ -65,7 +101,7 @@ class EmbreeVisibility final : public Visibility {
       for (int p : patches)
         for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k, ++t) {
           for (int c = 0; c < 3; ++c) {
-            const Vec3& v = g.points[g.triangles[k][c]];
+            const Vec3 v = g.points[g.triangles[k][c]] - centre_;
             vb[9 * t + 3 * c + 0] = float(v.x());
             vb[9 * t + 3 * c + 1] = float(v.y());
             vb[9 * t + 3 * c + 2] = float(v.z());
@@ -93,6 +129,7 @@ class EmbreeVisibility final : public Visibility {
     c.ctx.filter = &ignore_filter;
     c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one call = rays between two patches
     c.tri_patch = tri_patch_.data();
+    c.planes = &planes_;
     c.a = ignore_a;
     c.b = ignore_b;
     constexpr size_t kChunk = 64;
@@ -100,8 +137,8 @@ class EmbreeVisibility final : public Visibility {
     for (size_t b = 0; b < from.size(); b += kChunk) {
       const size_t n = std::min(kChunk, from.size() - b);
       for (size_t k = 0; k < n; ++k) {
-        const Vec3& o = from[b + k];
-        const Vec3 d = to[b + k] - o;
+        const Vec3 o = from[b + k] - centre_;
+        const Vec3 d = to[b + k] - from[b + k];
         RTCRay& r = rays[k];
         r.org_x = float(o.x());
         r.org_y = float(o.y());
@@ -124,12 +161,14 @@ class EmbreeVisibility final : public Visibility {
  private:
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
+  Vec3 centre_ = Vec3::Zero();  // subtracted from every coordinate before it becomes a float
+  Planes planes_;
   std::vector<int> tri_patch_;
 };
 
 class BruteForceVisibility final : public Visibility {
  public:
-  explicit BruteForceVisibility(const mesh::PatchGeometry& g) : g_(g) {
+  explicit BruteForceVisibility(const mesh::PatchGeometry& g) : g_(g), planes_(g, Vec3::Zero()) {
     for (int p = 0; p < g.size(); ++p)
       for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) patch_.push_back(p);
   }
@@ -139,7 +178,7 @@ class BruteForceVisibility final : public Visibility {
       const Vec3 o = from[r], d = to[r] - from[r];
       bool hit = false;
       for (size_t t = 0; t < patch_.size() && !hit; ++t) {
-        if (patch_[t] == ignore_a || patch_[t] == ignore_b) continue;
+        if (planes_.ignored(patch_[t], ignore_a, ignore_b)) continue;
         const auto& T = g_.triangles[t];
         const Vec3 &A = g_.points[T[0]], &B = g_.points[T[1]], &C = g_.points[T[2]];
         // Moller-Trumbore; a hit counts for t strictly inside (0, 1) and the closed triangle.
@@ -162,6 +201,7 @@ class BruteForceVisibility final : public Visibility {
 
  private:
   mesh::PatchGeometry g_;  // a copy: the caster may outlive the caller's geometry
+  Planes planes_;
   std::vector<int> patch_;
 };
 

@@ -126,6 +126,11 @@ class JsonMaterials {
     error(where, "found " + kind(j) + "; expected a number or an array of 1 or 3 numbers");
   }
 
+  bool flag(const json& j, const std::string& where) const {
+    if (!j.is_boolean()) error(where, "found " + kind(j) + "; expected true or false");
+    return j.get<bool>();
+  }
+
   // First material with this name (hash map: O(1) instead of a scan of all materials).
   int find(const std::string& name) const {
     const auto it = by_name_.find(name);
@@ -149,13 +154,14 @@ class JsonMaterials {
       if (!value.is_object())
         error(where, "found " + kind(value) + "; expected an object {\"reflectance\": ..., \"emission\": ...}");
       for (auto& [key, v] : value.items())
-        if (key != "reflectance" && key != "emission")
-          error(where, "unknown key " + quote(key) + "; expected \"reflectance\" and/or \"emission\"");
+        if (key != "reflectance" && key != "emission" && key != "two_sided")
+          error(where, "unknown key " + quote(key) + "; expected \"reflectance\", \"emission\" and/or \"two_sided\"");
       int m = find(name);
       if (m < 0) m = add(name);
       mesh::Material& mat = soup_.materials[m];
       if (value.contains("reflectance")) mat.reflectance = colour(value["reflectance"], where + ".reflectance");
       if (value.contains("emission")) mat.emission = colour(value["emission"], where + ".emission");
+      if (value.contains("two_sided")) mat.two_sided = flag(value["two_sided"], where + ".two_sided");
       mat.defined_at = SourceLoc{path_, 0};
       touched_.insert(m);
     }
@@ -175,8 +181,9 @@ class JsonMaterials {
       std::string where = "\"faces\"[" + std::to_string(e) + "]";
       if (!entry.is_object()) error(where, "found " + kind(entry) + "; expected an object {\"range\": [first, last], ...}");
       for (auto& [key, v] : entry.items())
-        if (key != "range" && key != "material" && key != "reflectance" && key != "emission")
-          error(where, "unknown key " + quote(key) + "; expected \"range\" with \"material\" or \"reflectance\"/\"emission\"");
+        if (key != "range" && key != "material" && key != "reflectance" && key != "emission" && key != "two_sided")
+          error(where, "unknown key " + quote(key) +
+                           "; expected \"range\" with \"material\" or \"reflectance\"/\"emission\"/\"two_sided\"");
       if (!entry.contains("range")) error(where, "no \"range\"; expected \"range\": [first, last] (inclusive face indices)");
       const json& r = entry["range"];
       if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() || !r[1].is_number_integer())
@@ -187,11 +194,11 @@ class JsonMaterials {
         error(where + ".range", "range [" + std::to_string(a) + ", " + std::to_string(b) +
                                     "] is out of bounds: the scene has " + std::to_string(nf) + " faces" +
                                     (nf > 0 ? " (indices 0 .. " + std::to_string(nf - 1) + ")" : ""));
-      bool inline_values = entry.contains("reflectance") || entry.contains("emission");
+      bool inline_values = entry.contains("reflectance") || entry.contains("emission") || entry.contains("two_sided");
       int m;
       if (entry.contains("material")) {
         if (inline_values)
-          error(where, "has both \"material\" and inline \"reflectance\"/\"emission\"; expected one of them");
+          error(where, "has both \"material\" and inline \"reflectance\"/\"emission\"/\"two_sided\"; expected one of them");
         const json& name = entry["material"];
         if (!name.is_string()) error(where + ".material", "found " + kind(name) + "; expected a material name (string)");
         m = find(name.get<std::string>());
@@ -208,9 +215,11 @@ class JsonMaterials {
         RGB refl = RGB::Constant(0.5), emit = RGB::Zero();
         if (entry.contains("reflectance")) refl = colour(entry["reflectance"], where + ".reflectance");
         if (entry.contains("emission")) emit = colour(entry["emission"], where + ".emission");
+        const bool two = entry.contains("two_sided") && flag(entry["two_sided"], where + ".two_sided");
         m = add(name);
         soup_.materials[m].reflectance = refl;
         soup_.materials[m].emission = emit;
+        soup_.materials[m].two_sided = two;
         touched_.insert(m);
       } else {
         error(where, "no \"material\" and no \"reflectance\"/\"emission\"; expected one of them");

@@ -196,6 +196,13 @@ class ObjReader {
         for (int i = 0; i < 3; ++i)
           c[i] = detail::finite_number(t[t.size() == 2 ? 1 : i + 1], file, line, what);
         (kw == "kd" ? cur->reflectance : cur->emission) = c;
+      } else if (kw == "two_sided") {
+        // lambert extension: "two_sided" or "two_sided 1" = both sides reflect (two patches per face);
+        // "two_sided 0" = one-sided (the default).
+        if (!cur) fail(file, line, "two_sided before any newmtl; expected 'newmtl NAME' first");
+        if (t.size() > 2 || (t.size() == 2 && t[1] != "0" && t[1] != "1"))
+          fail(file, line, "two_sided takes no value, 0 or 1; found " + quote(rest(l, t[0])));
+        cur->two_sided = t.size() == 1 || t[1] == "1";
       }
       // Ka, Ks, Ns, Ni, d, Tr, illum, map_* ...: not part of a Lambertian model, ignored.
     }
@@ -279,6 +286,7 @@ void write_obj(const mesh::PolygonSoup& soup, const std::string& obj_path) {
     mtl += "newmtl " + m.name + '\n';
     rgb(mtl, "Kd", m.reflectance);
     rgb(mtl, "Ke", m.emission);
+    if (m.two_sided) mtl += "two_sided 1\n";
   }
 
   std::string obj = "# written by lambert\nmtllib " + mtl_path.filename().string() + '\n';

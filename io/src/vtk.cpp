@@ -148,7 +148,11 @@ void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& ra
   vtkNew<vtkIntArray> material_id;  // int is 32 bits on every platform VTK supports
   material_id->SetName("material_id");
   material_id->SetNumberOfValues(n);
+  vtkNew<vtkIntArray> side;  // 0 front (the face as given), 1 back of a two-sided face
+  side->SetName("side");
+  side->SetNumberOfValues(n);
   for (int p = 0; p < n; ++p) {
+    side->SetValue(p, p < static_cast<int>(scene.side.size()) ? scene.side[p] : 0);
     face_id->SetValue(p, scene.face_id[p]);
     area->SetValue(p, g.area[p]);
     material_id->SetValue(p, scene.material[p]);
@@ -157,7 +161,7 @@ void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& ra
   for (vtkAbstractArray* a : {static_cast<vtkAbstractArray*>(cr), static_cast<vtkAbstractArray*>(ci),
                               static_cast<vtkAbstractArray*>(crho), static_cast<vtkAbstractArray*>(ce),
                               static_cast<vtkAbstractArray*>(face_id), static_cast<vtkAbstractArray*>(area),
-                              static_cast<vtkAbstractArray*>(material_id)})
+                              static_cast<vtkAbstractArray*>(material_id), static_cast<vtkAbstractArray*>(side)})
     cd->AddArray(a);
   cd->SetActiveScalars("radiance");
 

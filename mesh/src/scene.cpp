@@ -285,9 +285,17 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
 
   // 4. Duplicate vertices: distinct used positions with identical coordinates (kept apart here).
   {
+    // The back of a two-sided face has its own copies of the front's vertices: not duplicates.
+    std::vector<char> back_only(nv, 0);
+    for (const auto& f : soup.faces)
+      if (f.side == 1)
+        for (int v : f.vertices) back_only[v] = 1;
+    for (const auto& f : soup.faces)
+      if (f.side != 1)
+        for (int v : f.vertices) back_only[v] = 0;
     std::vector<int> used;
     for (int v = 0; v < nv; ++v)
-      if (position_first[v] >= 0) used.push_back(v);
+      if (position_first[v] >= 0 && !back_only[v]) used.push_back(v);
     auto less = [&](int a, int b) {
       const Vec3 &p = soup.positions[a], &q = soup.positions[b];
       if (p.x() != q.x()) return p.x() < q.x();
@@ -327,10 +335,21 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
     std::sort(dirs.begin(), dirs.end(), [](const Dir& x, const Dir& y) {
       return x.key != y.key ? x.key < y.key : x.face < y.face;
     });
+    // Only edges that exactly two faces share: where three or more faces meet (a wall standing on a
+    // floor line, a partition against a wall, after imprinting) some always run the same way.
+    std::map<std::uint64_t, int> uses;
+    for (const auto& d : dirs) {
+      const std::uint64_t a = d.key >> 32, b = d.key & 0xffffffffu;
+      uses[std::min(a, b) << 32 | std::max(a, b)]++;
+    }
+    auto manifold = [&](std::uint64_t key) {
+      const std::uint64_t a = key >> 32, b = key & 0xffffffffu;
+      return uses[std::min(a, b) << 32 | std::max(a, b)] == 2;
+    };
     std::vector<std::uint64_t> bad;  // undirected keys
     size_t ex = dirs.size();
     for (size_t i = 1; i < dirs.size(); ++i)
-      if (dirs[i].key == dirs[i - 1].key) {
+      if (dirs[i].key == dirs[i - 1].key && manifold(dirs[i].key)) {
         const std::uint64_t a = dirs[i].key >> 32, b = dirs[i].key & 0xffffffffu;
         bad.push_back(std::min(a, b) << 32 | std::max(a, b));
         if (ex == dirs.size()) ex = i;
@@ -353,8 +372,10 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
   scene.face_id.resize(np);
   scene.material.resize(np);
   scene.group.resize(np);
+  scene.side.resize(np);
   for (int p = 0; p < np; ++p) {
     const SoupFace& f = soup.faces[specs[p].face];
+    scene.side[p] = f.side;
     scene.face_id[p] = input_face(soup, specs[p].face);
     scene.material[p] = f.material;
     scene.group[p] = f.group;

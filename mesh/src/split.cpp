@@ -90,12 +90,13 @@ PolygonSoup soup_from_scene(const PolygonSoup& in, const Scene& scene) {
   s.positions.clear();
   s.position_lines.clear();
   s.faces.clear();
-  std::map<std::array<double, 3>, int> index;
+  std::map<std::array<double, 3>, int> index, back_index;  // backs of two-sided faces: their own vertices
   const auto& g = scene.geometry;
   for (int p = 0; p < scene.patches(); ++p) {
     SoupFace f;
+    f.side = p < static_cast<int>(scene.side.size()) ? scene.side[p] : 0;
     for (const Vec3& v : g.polygon(p)) {
-      auto [it, added] = index.try_emplace({v.x(), v.y(), v.z()}, static_cast<int>(s.positions.size()));
+      auto [it, added] = (f.side == 1 ? back_index : index).try_emplace({v.x(), v.y(), v.z()}, static_cast<int>(s.positions.size()));
       if (added) {
         s.positions.push_back(v);
         s.position_lines.push_back(0);

@@ -14,7 +14,8 @@ class Visibility {
  public:
   virtual ~Visibility() = default;
   // For each k: hidden[k] = 1 if the open segment from[k] -> to[k] meets a patch other than ignore_a and
-  // ignore_b (the source and target patches, so no self-hit epsilon is needed), else 0.
+  // ignore_b (the source and target patches, so no self-hit epsilon is needed) and other than the patches
+  // in their planes (coincident with them: the back of a two-sided face), else 0.
   // Precondition: from, to and hidden have the same size.
   virtual void occluded(std::span<const Vec3> from, std::span<const Vec3> to, int ignore_a, int ignore_b,
                         std::span<std::uint8_t> hidden) const = 0;

@@ -11,7 +11,9 @@
 namespace lambert::io {
 
 // Wavefront OBJ: v, f (v, v/vt, v//vn, v/vt/vn, negative indices), o/g (-> groups), mtllib, usemtl.
-// MTL: newmtl, Kd (reflectance), Ke (radiance W m^-2 sr^-1); one value means grey. Faces before
+// MTL: newmtl, Kd (reflectance), Ke (radiance W m^-2 sr^-1); one value means grey; "two_sided" or
+// "two_sided 1" (a lambert extension; "two_sided 0" = one-sided, the default) marks the material
+// two-sided (Material::two_sided). Faces before
 // any usemtl get material 0 and are counted in faces_without_material. An MTL material named
 // "default" replaces material 0.
 mesh::PolygonSoup read_obj(const std::string& path);
@@ -27,12 +29,24 @@ mesh::PolygonSoup read_ply(const std::string& path);
 // written all as integers are 0..255, otherwise floats 0..1; materials as for PLY.
 mesh::PolygonSoup read_off(const std::string& path);
 
-// Dispatches on the extension (.obj, .ply, .off, case-insensitive).
+// STL, binary or ASCII, told apart by content (not by extension): binary when the file size is exactly
+// 84 + 50 x (the header's facet count), else ASCII when it starts with "solid", else a binary file whose
+// count lies (an error naming the first incomplete facet). Facet k is input face k (a triangle with its
+// own three vertices: mesh::prepare welds them). The facet normal is ignored: the vertex order (right-hand
+// rule) gives the front side, as for every format. ASCII "solid NAME" names a group. Every face gets
+// material 0 ("default"; --materials names or face ranges override it). Errors name the facet (and the
+// line for ASCII).
+mesh::PolygonSoup read_stl(const std::string& path);
+
+// Dispatches on the extension (.obj, .ply, .off, .stl, case-insensitive); any other extension by
+// content (PLY and OFF magic words, STL as read_stl tells it).
 mesh::PolygonSoup read_soup(const std::string& path);
 
 // Applies a --materials JSON file:
-//   {"materials": {"NAME": {"reflectance": R, "emission": E}, ...},
-//    "faces": [{"range": [first, last], "material": "NAME"} | {"range": [...], "reflectance": R, "emission": E}]}
+//   {"materials": {"NAME": {"reflectance": R, "emission": E, "two_sided": B}, ...},
+//    "faces": [{"range": [first, last], "material": "NAME"} |
+//              {"range": [...], "reflectance": R, "emission": E, "two_sided": B}]}
+// B: true or false (default false: one-sided).
 // R, E: a number (grey) or an array of 1 or 3 numbers. "materials" entries override only the given
 // fields of the material with that name, or create it (grey 0.5, no emission). "faces" ranges are
 // inclusive 0-based input face indices; inline values create a material "faces_FIRST-LAST".
@@ -49,5 +63,7 @@ void write_obj(const mesh::PolygonSoup& soup, const std::string& obj_path);
 // Colours are 8-bit when every value is k/255 exactly, else double (PLY) / decimals (OFF).
 void write_ply(const mesh::PolygonSoup& soup, const std::string& path, bool binary);
 void write_off(const mesh::PolygonSoup& soup, const std::string& path);
+// STL keeps only geometry: faces as triangles (n-gons ear-clipped), binary (float32) or ASCII.
+void write_stl(const mesh::PolygonSoup& soup, const std::string& path, bool binary);
 
 }  // namespace lambert::io

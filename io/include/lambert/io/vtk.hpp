@@ -14,7 +14,8 @@ namespace lambert::io {
 //   point data: "radiance" (3, W m^-2 sr^-1, area-weighted average of the adjacent cells' radiance)
 //   cell data:  "radiance" (3, W m^-2 sr^-1), "irradiance" (3, W m^-2), "reflectance" (3),
 //               "emission" (3, W m^-2 sr^-1), "face_id" (Int64, input face index, 0-based file order),
-//               "area" (m^2), "material_id" (Int32, index into "material_names")
+//               "area" (m^2), "material_id" (Int32, index into "material_names"),
+//               "side" (Int32: 0 the face as given, 1 the back of a two-sided face)
 //   field data: "material_names" (strings, one per scene material), "source" (scene.source)
 // radiance and irradiance: patches x 3. Throws std::invalid_argument if their row count is not
 // scene.patches() or the crease angle is outside [0, 180]. The file is written to a temporary sibling

@@ -13,11 +13,22 @@
 //     ("pinched") is split into its loops            "repeated_corners_removed", "pinched_faces_split"
 //     faces left with < 3 corners or zero area (build_scene's test) are removed
 //                                                                      "degenerate_faces_removed"
-//  3. orientation, per component of faces joined by manifold edges (two faces): made consistent;
-//     a closed component (a shell) faces inward when it lies inside an even number of other shells
-//     (the outermost room, seen from inside) and outward when odd (a block in the room); an open
-//     component keeps the orientation of the majority of its faces (ties: its first face)
-//                                                   "faces_reoriented", "non_orientable_components"
+//  3. orientation (options.orient; the file's winding is the truth, a valid model is never changed):
+//     file        nothing is flipped
+//     consistent  per connected surface (faces joined by manifold edges), the faces that disagree
+//                 with the majority of the surface are flipped (ties: its first face)
+//     visibility  (default) consistent, then a whole surface is flipped only on strong evidence of
+//                 which of its sides the rest of the scene sees: from sample points on every face,
+//                 8 rays into each hemisphere (cosine-distributed, fixed seeds); a ray that first
+//                 hits another surface counts for the side it left, weighted by the face's area.
+//                 A surface is flipped when at least 8 rays from its back reach other surfaces and
+//                 its back gets >= 80 % of the weight (a room wound outward around its furniture; a
+//                 block wound inward in a room). A surface nobody else sees (an empty closed room)
+//                 keeps the file's winding; a closed object wound outward is never flipped.
+//     "faces_reoriented" (faces flipped, all modes), "surfaces_flipped" (whole surfaces flipped by
+//     visibility, each named with its input faces and evidence), "non_orientable_components".
+//     Hint (all modes, when repair runs): "faces_seen_from_behind" counts one-sided faces whose back
+//     reaches other faces' front sides with more rays than their front does (mark them two-sided?).
 // Detection (reported, never changed; also without repair, on the raw faces, since it changes
 // nothing and tells where light can leak):
 //  4. faces whose interiors cross, or coincide facing the same way (a duplicate, a decal); not faces
@@ -50,14 +61,30 @@
 // (A face the mesher cannot refine, not expected for faces build_scene accepts, keeps its size and
 // is warned about: "faces_not_refined".)
 //
+// Two-sided faces (last, with or without repair): a face whose material is two_sided becomes two
+// patches, the face as given (side 0) and right after it its back (side 1: the corners reversed, on
+// copies of the vertices), each with its own radiance; both keep the input face's origin. Visibility
+// ignores a patch coplanar with the ray's source or target, so the two never shadow each other.
+//                                                                                  "two_sided_faces"
+//
 // Each step records its count (0 too) in report.counts; a warning names up to 5 input faces.
 #include "lambert/mesh/scene.hpp"
 #include "lambert/mesh/soup.hpp"
 
 namespace lambert::mesh {
 
+// How step 3 orients faces (see above). visibility is the default: it repairs the common export
+// errors (a room or an object wound the wrong way round) and never flips a consistently wound
+// surface that the rest of the scene sees from its front.
+enum class Orientation { file, consistent, visibility };
+
+// "file" | "consistent" | "visibility" -> Orientation; throws InputError otherwise.
+Orientation parse_orientation(const std::string& name);
+
 struct PrepareOptions {
   bool repair = true;
+  Orientation orient = Orientation::visibility;
+  bool imprint = true;  // with repair: contact lines and crossings imprinted, hidden fragments removed
   double max_edge = 0;  // metres; 0 = no refinement; must be >= 0 and finite
   // Weld, T-junction and touching distance, relative to the bounding-box diagonal of the used
   // vertices. 1e-6 (7 um in a 5 x 4 x 2.7 m room): above the rounding of files written with 6 digits,

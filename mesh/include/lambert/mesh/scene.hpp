@@ -39,6 +39,8 @@ struct Scene {
   std::vector<int> face_id;      // per patch: index of the input face it came from (0-based, file order)
   std::vector<int> material;     // per patch: index into materials
   std::vector<int> group;        // per patch: index into groups, -1 = none
+  std::vector<int> side;         // per patch: 0 the face as given, 1 the back of a two-sided face
+                                 // (SoupFace::side; empty = all 0)
   std::vector<Material> materials;
   std::vector<std::string> groups;
   int input_faces = 0;           // faces in the input file

@@ -13,6 +13,7 @@ struct Material {
   std::string name;
   RGB reflectance = RGB::Constant(0.5);  // diffuse albedo rho per channel, must lie in [0, 1)
   RGB emission = RGB::Zero();            // emitted radiance Le, W m^-2 sr^-1, must be >= 0
+  bool two_sided = false;                // each face becomes two patches, front and back (mesh::prepare)
   SourceLoc defined_at;                  // where the values came from (MTL line, JSON file, ...)
 };
 
@@ -23,6 +24,7 @@ struct SoupFace {
   int line = 0;               // 1-based line of the face in the source file (0 for binary formats)
   int origin = -1;            // input face this face was made from (mesh::prepare splits and refines
                               // faces); -1 = its own index. Scene::face_id and messages use it.
+  int side = 0;               // 0: the face as given; 1: the back of a two-sided face (reversed copy)
 };
 
 struct PolygonSoup {

@@ -1,0 +1,549 @@
+// mesh::prepare, step 3b: contact lines and crossings imprinted (Baum, Mann, Smith, Winget 1991:
+// "Making radiosity usable: automatic preprocessing and meshing techniques for the generation of
+// accurate radiosity solutions"). Where a face touches another face's interior along a line (a wall
+// standing on a slab) or crosses it (a leg through a floor), both are split along that line; the
+// fragments that end up hidden (under a wall, inside a solid, between coincident faces) are removed.
+// Intersections with exact constructions (CGAL Epeck), splitting by a constrained Delaunay
+// triangulation per face in its plane (robust predicates), pieces merged back into polygons.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <random>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_2_algorithms.h>
+#include <CGAL/Triangulation_vertex_base_with_info_2.h>
+#include <CGAL/box_intersection_d.h>
+#include <CGAL/intersections.h>
+
+#include "prepare_internal.hpp"
+#include "soup_rays.hpp"
+
+namespace lambert::mesh::detail {
+
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using KE = CGAL::Exact_predicates_exact_constructions_kernel;
+using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
+struct Info {
+  int index = -1;  // soup position index; -1: a crossing of two constraints made by the triangulation
+};
+using Vb = CGAL::Triangulation_vertex_base_with_info_2<Info, K>;
+using Fb = CGAL::Constrained_triangulation_face_base_2<K>;
+using Tds = CGAL::Triangulation_data_structure_2<Vb, Fb>;
+using CDT = CGAL::Constrained_Delaunay_triangulation_2<K, Tds, CGAL::Exact_predicates_tag>;
+
+KE::Point_3 ke(const Vec3& p) { return {p.x(), p.y(), p.z()}; }
+Vec3 vec(const KE::Point_3& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())}; }
+
+// Positions by location: a point within tol of an existing one is that one (hash grid of cell tol).
+class PointIndex {
+ public:
+  PointIndex(PolygonSoup& s, double tol) : s_(s), tol_(tol), cell_(std::max(tol, 1e-300)) {
+    for (const auto& f : s.faces)
+      for (int v : f.vertices) add_existing(v);
+  }
+  int find_or_add(const Vec3& p) {
+    const auto c = cell(p);
+    int best = -1;
+    double bd = tol_;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = grid_.find(key({c[0] + dx, c[1] + dy, c[2] + dz}));
+          if (it == grid_.end()) continue;
+          for (int w : it->second) {
+            const double d = (s_.positions[w] - p).norm();
+            if (d <= bd) bd = d, best = w;
+          }
+        }
+    if (best >= 0) return best;
+    const int v = static_cast<int>(s_.positions.size());
+    s_.positions.push_back(p);
+    s_.position_lines.push_back(0);
+    grid_[key(c)].push_back(v);
+    return v;
+  }
+
+ private:
+  void add_existing(int v) {
+    if (seen_.size() <= size_t(v)) seen_.resize(s_.positions.size(), 0);
+    if (seen_[v]) return;
+    seen_[v] = 1;
+    grid_[key(cell(s_.positions[v]))].push_back(v);
+  }
+  std::array<std::int64_t, 3> cell(const Vec3& p) const {
+    return {std::int64_t(std::floor(p.x() / cell_)), std::int64_t(std::floor(p.y() / cell_)),
+            std::int64_t(std::floor(p.z() / cell_))};
+  }
+  static std::uint64_t key(const std::array<std::int64_t, 3>& c) {
+    return std::uint64_t(c[0]) * 73856093u ^ std::uint64_t(c[1]) * 19349663u ^ std::uint64_t(c[2]) * 83492791u;
+  }
+  PolygonSoup& s_;
+  double tol_, cell_;
+  std::vector<char> seen_;
+  std::unordered_map<std::uint64_t, std::vector<int>> grid_;
+};
+
+struct FaceData {
+  std::vector<Vec3> poly;
+  Vec3 n = Vec3::Zero();  // unit
+  Vec3 u, v;              // plane basis, u x v = n
+  std::vector<KE::Triangle_3> tris;
+  std::vector<std::array<Vec3, 2>> cuts;  // segments to imprint (metres)
+};
+
+Eigen::Vector2d to2(const FaceData& f, const Vec3& p) { return {(p - f.poly[0]).dot(f.u), (p - f.poly[0]).dot(f.v)}; }
+
+void add_cut(FaceData& f, const Vec3& a, const Vec3& b, double tol) {
+  if ((a - b).norm() <= tol) return;
+  // On the face's boundary already: nothing to split.
+  const Vec3 m = 0.5 * (a + b);
+  if (distance_to_boundary(m, f.poly) <= tol && distance_to_boundary(a, f.poly) <= tol &&
+      distance_to_boundary(b, f.poly) <= tol)
+    return;
+  f.cuts.push_back({a, b});
+}
+
+// Pieces of one line (direction d) found triangle by triangle, joined where they touch (within tol):
+// triangulation diagonals must not leave extra vertices on a cut.
+std::vector<std::array<Vec3, 2>> join_collinear(std::vector<std::array<Vec3, 2>> pieces, const Vec3& d, double tol) {
+  for (auto& p : pieces)
+    if (p[0].dot(d) > p[1].dot(d)) std::swap(p[0], p[1]);
+  std::sort(pieces.begin(), pieces.end(), [&](const auto& a, const auto& b) { return a[0].dot(d) < b[0].dot(d); });
+  std::vector<std::array<Vec3, 2>> out;
+  for (const auto& p : pieces) {
+    if (!out.empty() && p[0].dot(d) <= out.back()[1].dot(d) + tol) {
+      if (p[1].dot(d) > out.back()[1].dot(d)) out.back()[1] = p[1];
+    } else {
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
+// Segments where face g meets face f (both directions are added by the caller).
+void intersect_pair(FaceData& f, FaceData& g, double tol) {
+  const bool parallel = f.n.cross(g.n).norm() <= 1e-9;
+  const bool coplanar = parallel && std::abs(f.n.dot(g.poly[0] - f.poly[0])) <= tol;
+  if (coplanar) {
+    // Overlapping coplanar faces: each gets the other's edges, clipped to itself.
+    auto clip_edges = [&](FaceData& to, const FaceData& from) {
+      for (size_t c = 0; c < from.poly.size(); ++c) {
+        const KE::Segment_3 e(ke(from.poly[c]), ke(from.poly[(c + 1) % from.poly.size()]));
+        // Project onto to's plane first (coplanar within tol, not exactly).
+        const KE::Plane_3 plane(to.tris[0].vertex(0), to.tris[0].vertex(1), to.tris[0].vertex(2));
+        const KE::Segment_3 ep(plane.projection(e.source()), plane.projection(e.target()));
+        std::vector<std::array<Vec3, 2>> found;
+        for (const auto& t : to.tris) {
+          const auto x = CGAL::intersection(t, ep);
+          if (!x) continue;
+          if (const auto* s = boost::get<KE::Segment_3>(&*x)) found.push_back({vec(s->source()), vec(s->target())});
+        }
+        const Vec3 d = (from.poly[(c + 1) % from.poly.size()] - from.poly[c]).normalized();
+        for (const auto& seg : join_collinear(found, d, tol)) add_cut(to, seg[0], seg[1], tol);
+      }
+    };
+    clip_edges(f, g);
+    clip_edges(g, f);
+    return;
+  }
+  if (parallel) return;
+  std::vector<std::array<Vec3, 2>> found;
+  for (const auto& tf : f.tris)
+    for (const auto& tg : g.tris) {
+      if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) || !CGAL::do_intersect(tf, tg)) continue;
+      const auto x = CGAL::intersection(tf, tg);
+      if (!x) continue;
+      if (const auto* s = boost::get<KE::Segment_3>(&*x)) found.push_back({vec(s->source()), vec(s->target())});
+    }
+  for (const auto& seg : join_collinear(found, f.n.cross(g.n).normalized(), tol)) {
+    add_cut(f, seg[0], seg[1], tol);
+    add_cut(g, seg[0], seg[1], tol);
+  }
+}
+
+// Splits face k along its cuts: the pieces (corner index lists, same winding), or empty if none.
+std::vector<std::vector<int>> split_face(const PolygonSoup& s, int k, const FaceData& f, PointIndex& index) {
+  CDT cdt;
+  const auto& fv = s.faces[k].vertices;
+  std::vector<CDT::Vertex_handle> corner(fv.size());
+  std::vector<K::Point_2> outline;
+  for (size_t c = 0; c < fv.size(); ++c) {
+    const Eigen::Vector2d q = to2(f, f.poly[c]);
+    outline.emplace_back(q.x(), q.y());
+    corner[c] = cdt.insert(outline.back());
+    corner[c]->info().index = fv[c];
+  }
+  for (size_t c = 0; c < fv.size(); ++c) cdt.insert_constraint(corner[c], corner[(c + 1) % fv.size()]);
+  for (const auto& cut : f.cuts) {
+    CDT::Vertex_handle h[2];
+    for (int e = 0; e < 2; ++e) {
+      const Eigen::Vector2d q = to2(f, cut[e]);
+      h[e] = cdt.insert({q.x(), q.y()});
+      if (h[e]->info().index < 0) h[e]->info().index = index.find_or_add(cut[e]);
+    }
+    if (h[0] != h[1]) cdt.insert_constraint(h[0], h[1]);
+  }
+  // Vertices the triangulation made where constraints cross: back to 3D in the face's plane.
+  for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v)
+    if (v->info().index < 0) {
+      const auto& p = v->point();
+      v->info().index = index.find_or_add(f.poly[0] + p.x() * f.u + p.y() * f.v);
+    }
+  // Triangles inside the face, grouped into regions bounded by constraints.
+  std::map<CDT::Face_handle, int> region;
+  std::vector<std::vector<CDT::Face_handle>> regions;
+  for (auto fh = cdt.finite_faces_begin(); fh != cdt.finite_faces_end(); ++fh) {
+    const auto c = CGAL::centroid(fh->vertex(0)->point(), fh->vertex(1)->point(), fh->vertex(2)->point());
+    if (CGAL::bounded_side_2(outline.begin(), outline.end(), c, K()) != CGAL::ON_BOUNDED_SIDE) continue;
+    region[fh] = -1;
+  }
+  for (auto& [start, r0] : region) {
+    if (r0 >= 0) continue;
+    const int r = static_cast<int>(regions.size());
+    regions.emplace_back();
+    std::vector<CDT::Face_handle> stack{start};
+    region[start] = r;
+    while (!stack.empty()) {
+      const auto fh = stack.back();
+      stack.pop_back();
+      regions[r].push_back(fh);
+      for (int i = 0; i < 3; ++i) {
+        if (cdt.is_constrained({fh, i})) continue;
+        const auto nh = fh->neighbor(i);
+        const auto it = region.find(nh);
+        if (it == region.end() || it->second >= 0) continue;
+        it->second = r;
+        stack.push_back(nh);
+      }
+    }
+  }
+  if (regions.size() <= 1) return {};
+  std::vector<std::vector<int>> pieces;
+  for (int r = 0; r < static_cast<int>(regions.size()); ++r) {
+    // Boundary of the region: directed edges (counter-clockwise) whose other side is another region.
+    std::map<int, int> next;
+    bool simple = true;
+    size_t edges = 0;
+    for (const auto& fh : regions[r])
+      for (int i = 0; i < 3; ++i) {
+        const auto it = region.find(fh->neighbor(i));
+        if (it != region.end() && it->second == r) continue;
+        const int a = fh->vertex(CDT::ccw(i))->info().index, b = fh->vertex(CDT::cw(i))->info().index;
+        if (!next.emplace(a, b).second) simple = false;
+        ++edges;
+      }
+    std::vector<int> loop;
+    if (simple && !next.empty()) {
+      int v = next.begin()->first;
+      for (size_t guard = 0; guard <= edges; ++guard) {
+        loop.push_back(v);
+        const auto it = next.find(v);
+        if (it == next.end()) {
+          simple = false;
+          break;
+        }
+        v = it->second;
+        if (v == loop.front()) break;
+      }
+      simple = simple && loop.size() == edges;
+    }
+    if (simple) {
+      // Corners snapped onto one position (closer than the weld tolerance) collapse.
+      std::vector<int> clean;
+      for (int v : loop)
+        if (clean.empty() || clean.back() != v) clean.push_back(v);
+      while (clean.size() > 1 && clean.back() == clean.front()) clean.pop_back();
+      std::vector<int> sorted = clean;
+      std::sort(sorted.begin(), sorted.end());
+      if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) simple = false;  // pinched
+      else if (clean.size() >= 3) pieces.push_back(clean);
+    }
+    if (!simple) {  // a region with holes (or pinched): its triangles
+      for (const auto& fh : regions[r]) {
+        const int a = fh->vertex(0)->info().index, b = fh->vertex(1)->info().index, c = fh->vertex(2)->info().index;
+        if (a != b && b != c && a != c) pieces.push_back({a, b, c});
+      }
+    }
+  }
+  return pieces;
+}
+
+
+// p (in the polygon's plane) strictly inside the polygon with unit normal n.
+bool inside_polygon(const std::vector<Vec3>& poly, const Vec3& n, const Vec3& p) {
+  const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized(), v = n.cross(u);
+  std::vector<K::Point_2> q;
+  for (const Vec3& c : poly) q.emplace_back((c - poly[0]).dot(u), (c - poly[0]).dot(v));
+  const K::Point_2 x((p - poly[0]).dot(u), (p - poly[0]).dot(v));
+  return CGAL::bounded_side_2(q.begin(), q.end(), x, K()) == CGAL::ON_BOUNDED_SIDE;
+}
+
+// Inserts into every face edge the vertices with used[v] != 0 that lie inside it (within tol).
+void conform(PolygonSoup& s, double tol, std::vector<char> used) {
+  used.resize(s.positions.size(), 0);
+  std::vector<Box> vboxes, eboxes;
+  for (int v = 0; v < static_cast<int>(used.size()); ++v)
+    if (used[v]) {
+      const Vec3& p = s.positions[v];
+      double lo[3] = {p.x() - tol, p.y() - tol, p.z() - tol}, hi[3] = {p.x() + tol, p.y() + tol, p.z() + tol};
+      vboxes.emplace_back(lo, hi, v);
+    }
+  std::vector<std::pair<int, int>> edges;  // (face, corner): edge from corner c to c + 1
+  for (int k = 0; k < static_cast<int>(s.faces.size()); ++k) {
+    const auto& fv = s.faces[k].vertices;
+    for (size_t c = 0; c < fv.size(); ++c) {
+      const Vec3 &a = s.positions[fv[c]], &b = s.positions[fv[(c + 1) % fv.size()]];
+      double lo[3], hi[3];
+      for (int i = 0; i < 3; ++i) lo[i] = std::min(a[i], b[i]) - tol, hi[i] = std::max(a[i], b[i]) + tol;
+      eboxes.emplace_back(lo, hi, static_cast<int>(edges.size()));
+      edges.emplace_back(k, static_cast<int>(c));
+    }
+  }
+  std::map<std::pair<int, int>, std::vector<std::pair<double, int>>> inserts;
+  CGAL::box_intersection_d(vboxes.begin(), vboxes.end(), eboxes.begin(), eboxes.end(), [&](const Box& vb, const Box& eb) {
+    const auto [k, c] = edges[eb.info()];
+    const auto& fv = s.faces[k].vertices;
+    const int ia = fv[c], ib = fv[(c + 1) % fv.size()], v = vb.info();
+    if (v == ia || v == ib) return;
+    const Vec3 &a = s.positions[ia], &b = s.positions[ib], &p = s.positions[v];
+    const double l2 = (b - a).squaredNorm();
+    if (!(l2 > 0)) return;
+    const double t = (p - a).dot(b - a) / l2;
+    if (t * std::sqrt(l2) <= tol || (1 - t) * std::sqrt(l2) <= tol) return;
+    if ((a + t * (b - a) - p).norm() > tol) return;
+    inserts[{k, c}].emplace_back(t, v);
+  });
+  if (inserts.empty()) return;
+  std::map<int, std::vector<int>> by_face;
+  for (auto& [kc, list] : inserts) by_face[kc.first].push_back(kc.second);
+  for (auto& [k, cs] : by_face) {
+    auto& fv = s.faces[k].vertices;
+    std::vector<int> out;
+    for (size_t c = 0; c < fv.size(); ++c) {
+      out.push_back(fv[c]);
+      const auto it = inserts.find({k, static_cast<int>(c)});
+      if (it == inserts.end()) continue;
+      auto list = it->second;
+      std::sort(list.begin(), list.end());
+      for (const auto& [t, v] : list)
+        if (std::find(out.begin(), out.end(), v) == out.end() && std::find(fv.begin(), fv.end(), v) == fv.end())
+          out.push_back(v);
+    }
+    fv = std::move(out);
+  }
+}
+
+}  // namespace
+
+void imprint(PolygonSoup& s, double tol, Report& report) {
+  const int nf = static_cast<int>(s.faces.size());
+  report.counts["faces_imprinted"] += 0;
+  report.counts["hidden_fragments_removed"] += 0;
+  if (nf == 0) return;
+  std::vector<FaceData> fd(nf);
+  std::vector<Box> boxes;
+  for (int k = 0; k < nf; ++k) {
+    if (!usable_face(s, k)) continue;
+    FaceData& f = fd[k];
+    f.poly = corners(s, k);
+    f.n = newell_normal(f.poly).normalized();
+    f.u = (std::abs(f.n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(f.n).normalized();
+    f.v = f.n.cross(f.u);
+    for (const auto& t : triangulate_polygon(f.poly, f.n)) {
+      KE::Triangle_3 tri(ke(f.poly[t[0]]), ke(f.poly[t[1]]), ke(f.poly[t[2]]));
+      if (!tri.is_degenerate()) f.tris.push_back(tri);
+    }
+    if (f.tris.empty()) continue;
+    Eigen::AlignedBox3d b;
+    for (const Vec3& p : f.poly) b.extend(p);
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) lo[a] = b.min()[a] - tol, hi[a] = b.max()[a] + tol;
+    boxes.emplace_back(lo, hi, k);
+  }
+  std::vector<std::pair<int, int>> pairs;
+  CGAL::box_self_intersection_d(boxes.begin(), boxes.end(), [&](const Box& a, const Box& b) {
+    pairs.emplace_back(std::min(a.info(), b.info()), std::max(a.info(), b.info()));
+  });
+  std::sort(pairs.begin(), pairs.end());
+  std::vector<char> in_contact(nf, 0);
+  auto shared_corners = [&](int a, int b) {
+    int n = 0;
+    for (int v : s.faces[a].vertices)
+      n += std::find(s.faces[b].vertices.begin(), s.faces[b].vertices.end(), v) != s.faces[b].vertices.end();
+    return n;
+  };
+  for (auto [a, b] : pairs) {
+    if (origin_of(s, a) == origin_of(s, b)) continue;
+    // Neighbours across an edge that are not coplanar meet only along it (a fold would be coplanar).
+    // Coplanar neighbours across an edge, on either side of it, do not overlap either.
+    if (shared_corners(a, b) >= 2) {
+      if (fd[a].n.cross(fd[b].n).norm() > 1e-9) continue;
+      const auto& fa = s.faces[a].vertices;
+      int e0 = -1, e1 = -1;
+      for (size_t c = 0; c < fa.size() && e1 < 0; ++c) {
+        const int v = fa[c], w = fa[(c + 1) % fa.size()];
+        const auto& fb = s.faces[b].vertices;
+        if (std::find(fb.begin(), fb.end(), v) != fb.end() && std::find(fb.begin(), fb.end(), w) != fb.end())
+          e0 = v, e1 = w;
+      }
+      if (e1 >= 0) {
+        const Vec3 &p0 = s.positions[e0], &p1 = s.positions[e1];
+        const Vec3 side = (p1 - p0).cross(fd[a].n);
+        Vec3 ca = Vec3::Zero(), cb = Vec3::Zero();
+        for (const Vec3& q : fd[a].poly) ca += q / double(fd[a].poly.size());
+        for (const Vec3& q : fd[b].poly) cb += q / double(fd[b].poly.size());
+        if (side.dot(ca - p0) * side.dot(cb - p0) < 0) continue;
+      }
+    }
+    const size_t ca = fd[a].cuts.size(), cb = fd[b].cuts.size();
+    intersect_pair(fd[a], fd[b], tol);
+    // Coincident or touching faces are candidates for hiding even when nothing splits them.
+    const bool parallel = fd[a].n.cross(fd[b].n).norm() <= 1e-9;
+    const bool coplanar = parallel && std::abs(fd[a].n.dot(fd[b].poly[0] - fd[a].poly[0])) <= tol;
+    if (fd[a].cuts.size() > ca || fd[b].cuts.size() > cb || coplanar) in_contact[a] = in_contact[b] = 1;
+  }
+
+  PointIndex index(s, tol);
+  std::vector<SoupFace> out;
+  std::vector<char> check;  // per output face: test for hiding
+  std::vector<char> is_piece;  // per output face: a piece of a split face
+  std::vector<int> split_ids;
+  long pieces_added = 0, slivers = 0;
+  for (int k = 0; k < nf; ++k) {
+    std::vector<std::vector<int>> pieces;
+    if (!fd[k].cuts.empty()) pieces = split_face(s, k, fd[k], index);
+    if (pieces.empty()) {
+      out.push_back(s.faces[k]);
+      check.push_back(in_contact[k]);
+      is_piece.push_back(0);
+      continue;
+    }
+    split_ids.push_back(origin_of(s, k));
+    pieces_added += static_cast<long>(pieces.size()) - 1;
+    for (auto& p : pieces) {
+      std::vector<Vec3> poly;
+      for (int v : p) poly.push_back(s.positions[v]);
+      if (zero_area(poly)) {  // a sliver left by corners snapped together (within the weld tolerance)
+        ++slivers;
+        continue;
+      }
+      SoupFace piece = s.faces[k];
+      piece.origin = origin_of(s, k);
+      piece.vertices = std::move(p);
+      out.push_back(std::move(piece));
+      check.push_back(1);
+      is_piece.push_back(1);
+    }
+  }
+  s.faces = std::move(out);
+  report.counts["imprint_slivers_dropped"] += 0;
+  if (slivers > 0)
+    report.warn("imprint_slivers_dropped", slivers,
+                plural(slivers, "zero-area sliver", "zero-area slivers") +
+                    " left by splitting (corners closer than the weld tolerance) were dropped");
+  if (!split_ids.empty())
+    report.warn("faces_imprinted", static_cast<long>(split_ids.size()),
+                plural(static_cast<long>(split_ids.size()), "face was", "faces were") +
+                    " split along the lines where other faces touch or cross it (" +
+                    plural(pieces_added, "piece", "pieces") + " added; no patch straddles a wall): input face" +
+                    (split_ids.size() == 1 ? " " : "s ") + id_list(split_ids));
+
+  // Corners of the pieces inserted into every edge they lie on (within tol), so that faces next to a
+  // split face stay conforming (no new T-junctions).
+  {
+    std::vector<char> corner_of_piece(s.positions.size(), 0);
+    for (size_t k = 0; k < s.faces.size(); ++k)
+      if (is_piece[k])
+        for (int v : s.faces[k].vertices) corner_of_piece[v] = 1;
+    conform(s, tol, corner_of_piece);
+  }
+
+  // Hidden fragments: from a point inside the piece, rays into its front hemisphere; a face in the
+  // piece's own plane is met only at the ray's start and does not count. Covered when the first face
+  // met (or any face met at the same distance: a wall's top under the ceiling) is met from its back.
+  // Hidden when nearly all rays (>= 15 of 16) are covered: under a wall, inside a solid. Then a face
+  // coincident with a hidden one and facing the other way (a wall's bottom on the removed floor strip)
+  // is hidden too: between coincident faces.
+  const int n = static_cast<int>(s.faces.size());
+  std::vector<char> usable(n);
+  for (int k = 0; k < n; ++k) usable[k] = usable_face(s, k);
+  const SoupRays rays(s, usable);
+  std::vector<char> hidden(n, 0);
+  std::vector<int> hidden_ids;
+  double hidden_area = 0;
+  constexpr int kRays = 16;
+  auto coplanar = [&](int f, int g) {
+    const Vec3 &nf = rays.normal(f), &ng = rays.normal(g);
+    return std::abs(nf.dot(ng)) > 1 - 1e-9 &&
+           std::abs(nf.dot(s.positions[s.faces[g].vertices[0]] - s.positions[s.faces[f].vertices[0]])) <= tol;
+  };
+  std::vector<Vec3> probe(n, Vec3::Zero());
+  for (int k = 0; k < n; ++k) {
+    if (!check[k] || !rays.has(k)) continue;
+    std::mt19937_64 rng(0xD1B54A32D192ED03ull ^ std::uint64_t(k) * 0x9E3779B97F4A7C15ull);
+    probe[k] = rays.sample(k, rng);
+    int covered = 0;
+    for (int r = 0; r < kRays; ++r) {
+      const Vec3 o = rays.sample(k, rng);
+      const Vec3 d = cosine_direction(rays.normal(k), rng);
+      std::vector<int> skip{k};
+      auto skipped = [&](int f) { return std::find(skip.begin(), skip.end(), f) != skip.end(); };
+      bool back = false;
+      double first_t = -1;
+      for (int tries = 0; tries < 8; ++tries) {
+        const auto h = rays.first(o, d, skipped);
+        if (h.face < 0) break;
+        skip.push_back(h.face);
+        if (h.t <= tol && coplanar(k, h.face)) continue;  // touches the start only
+        if (first_t < 0) first_t = h.t;
+        if (h.t > first_t + tol) break;
+        back = back || !h.front;
+      }
+      if (back) ++covered;
+    }
+    if (covered >= kRays - 1) hidden[k] = 1;
+  }
+  // Between coincident faces: opposite-facing, coplanar, its probe point inside a hidden face.
+  std::vector<int> first_pass;
+  for (int k = 0; k < n; ++k)
+    if (hidden[k]) first_pass.push_back(k);
+  for (int k = 0; k < n; ++k) {
+    if (!check[k] || hidden[k] || !rays.has(k)) continue;
+    for (int h : first_pass) {
+      if (rays.normal(k).dot(rays.normal(h)) > -1 + 1e-9 || !coplanar(k, h)) continue;
+      const auto poly = corners(s, h);
+      if (inside_polygon(poly, rays.normal(h), probe[k])) {
+        hidden[k] = 1;
+        break;
+      }
+    }
+  }
+  for (int k = 0; k < n; ++k)
+    if (hidden[k]) {
+      hidden_ids.push_back(origin_of(s, k));
+      hidden_area += 0.5 * newell_normal(corners(s, k)).norm();
+    }
+  if (!hidden_ids.empty()) {
+    std::vector<SoupFace> kept;
+    for (int k = 0; k < n; ++k)
+      if (!hidden[k]) kept.push_back(std::move(s.faces[k]));
+    s.faces = std::move(kept);
+    report.warn("hidden_fragments_removed", static_cast<long>(hidden_ids.size()),
+                plural(static_cast<long>(hidden_ids.size()), "hidden fragment was", "hidden fragments were") +
+                    " removed (" + num(hidden_area) +
+                    " m^2 under walls, inside solids or between coincident faces: they would neither receive "
+                    "nor emit correctly): from input face" + (hidden_ids.size() == 1 ? " " : "s ") + id_list(hidden_ids));
+  }
+}
+
+}  // namespace lambert::mesh::detail

@@ -1,0 +1,268 @@
+// mesh::prepare, step 3: orientation. The file's winding is the truth: faces of one connected
+// surface are made to agree (majority), and a whole surface is flipped only when rays show that
+// the rest of the scene sees its back (cf. Takayama, Jacobson, Kavan, Sorkine-Hornung 2014,
+// visibility-based mesh orientation). See prepare.hpp, step 3.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "prepare_internal.hpp"
+#include "soup_rays.hpp"
+
+namespace lambert::mesh {
+
+Orientation parse_orientation(const std::string& name) {
+  if (name == "file") return Orientation::file;
+  if (name == "consistent") return Orientation::consistent;
+  if (name == "visibility") return Orientation::visibility;
+  throw InputError("unknown orientation mode '" + name + "' (expected file, consistent or visibility)");
+}
+
+namespace detail {
+
+namespace {
+
+constexpr int kRaysPerSide = 8;         // per face and side, at least ...
+constexpr int kRaysPerSurface = 1024;   // ... and about this many per surface and side (at most 128 per face)
+constexpr int kMinBackRays = 8;         // strong evidence: at least this many rays from the back ...
+constexpr double kBackShare = 0.8;      // ... and this share of the area-weighted hits
+
+struct Components {
+  std::vector<int> comp, parity;  // per face: component, flip relative to the component's first face
+  std::vector<std::vector<int>> members;
+  long non_orientable = 0;
+};
+
+// Two faces sharing an edge that lie in one plane on the same side of it (a duplicate face, a face
+// folded back onto its neighbour) overlap: they are not one surface continuing across the edge,
+// and their windings say nothing about each other (the public Cornell box repeats a side of each box
+// as its "bottom").
+bool folded(const PolygonSoup& s, int f, int g, std::uint64_t key) {
+  const auto pf = corners(s, f), pg = corners(s, g);
+  const Vec3 nf = newell_normal(pf), ng = newell_normal(pg);
+  if (!(nf.norm() > 0) || !(ng.norm() > 0)) return false;
+  if (nf.cross(ng).norm() > 1e-9 * nf.norm() * ng.norm()) return false;  // not coplanar
+  const Vec3 a = s.positions[static_cast<int>(key >> 32)], b = s.positions[static_cast<int>(key & 0xffffffffu)];
+  Vec3 cf = Vec3::Zero(), cg = Vec3::Zero();
+  for (const Vec3& p : pf) cf += p / double(pf.size());
+  for (const Vec3& p : pg) cg += p / double(pg.size());
+  const Vec3 side = (b - a).cross(nf);
+  return side.dot(cf - a) * side.dot(cg - a) > 0;
+}
+
+Components components(const PolygonSoup& s) {
+  const int nf = static_cast<int>(s.faces.size());
+  struct Use {
+    std::uint64_t key;
+    int face;
+    int dir;
+  };
+  std::vector<Use> uses;
+  for (int k = 0; k < nf; ++k) {
+    const auto& fv = s.faces[k].vertices;
+    for (size_t c = 0; c < fv.size(); ++c) {
+      const int a = fv[c], b = fv[(c + 1) % fv.size()];
+      uses.push_back({edge_key(a, b), k, a < b ? 1 : -1});
+    }
+  }
+  std::sort(uses.begin(), uses.end(),
+            [](const Use& x, const Use& y) { return x.key != y.key ? x.key < y.key : x.face < y.face; });
+  // Adjacency across manifold edges (two faces): (neighbour, 1 if both run the edge the same way).
+  std::vector<std::vector<std::pair<int, int>>> adj(nf);
+  for (size_t i = 0; i < uses.size();) {
+    size_t j = i;
+    while (j < uses.size() && uses[j].key == uses[i].key) ++j;
+    if (j - i == 2 && uses[i].face != uses[i + 1].face && !folded(s, uses[i].face, uses[i + 1].face, uses[i].key)) {
+      const int rel = uses[i].dir == uses[i + 1].dir ? 1 : 0;
+      adj[uses[i].face].push_back({uses[i + 1].face, rel});
+      adj[uses[i + 1].face].push_back({uses[i].face, rel});
+    }
+    i = j;
+  }
+  Components C;
+  C.comp.assign(nf, -1);
+  C.parity.assign(nf, 0);
+  for (int k = 0; k < nf; ++k) {
+    if (C.comp[k] >= 0) continue;
+    const int c = static_cast<int>(C.members.size());
+    C.members.emplace_back();
+    bool conflict = false;
+    std::vector<int> queue{k};
+    C.comp[k] = c;
+    for (size_t q = 0; q < queue.size(); ++q) {
+      const int f = queue[q];
+      C.members[c].push_back(f);
+      for (auto [g, rel] : adj[f]) {
+        if (C.comp[g] < 0) {
+          C.comp[g] = c;
+          C.parity[g] = C.parity[f] ^ rel;
+          queue.push_back(g);
+        } else if (C.parity[g] != (C.parity[f] ^ rel)) {
+          conflict = true;
+        }
+      }
+    }
+    std::sort(C.members[c].begin(), C.members[c].end());
+    if (conflict) ++C.non_orientable;
+  }
+  return C;
+}
+
+void flip_face(SoupFace& f) { std::reverse(f.vertices.begin() + 1, f.vertices.end()); }  // keeps the first corner
+
+}  // namespace
+
+void orient(PolygonSoup& s, Orientation mode, Report& report) {
+  const int nf = static_cast<int>(s.faces.size());
+  const Components C = components(s);
+  const int nc = static_cast<int>(C.members.size());
+  report.counts["faces_reoriented"] += 0;
+  report.counts["non_orientable_components"] += 0;
+  if (C.non_orientable > 0)
+    report.warn("non_orientable_components", C.non_orientable,
+                plural(C.non_orientable, "connected surface is", "connected surfaces are") +
+                    " not orientable (like a Moebius strip); some neighbours keep opposite orientations");
+
+  // flip[k]: the face ends up reversed. Majority per component (consistent, visibility).
+  std::vector<int> flip(nf, 0);
+  if (mode != Orientation::file) {
+    for (int c = 0; c < nc; ++c) {
+      long ones = 0;
+      for (int f : C.members[c]) ones += C.parity[f];
+      const int flip_all = 2 * ones > static_cast<long>(C.members[c].size());  // ties keep the first face
+      for (int f : C.members[c]) {
+        flip[f] = C.parity[f] ^ flip_all;
+      }
+    }
+  }
+
+  // Rays from both sides of every usable face: which side reaches other surfaces (evidence), and
+  // which side reaches front sides (the hint). Directions are drawn around the face's file normal;
+  // "side" below is relative to the orientation after the majority step.
+  std::vector<char> usable(nf);
+  for (int k = 0; k < nf; ++k) usable[k] = usable_face(s, k);
+  const SoupRays rays(s, usable);
+  std::vector<double> evidence_front(nc, 0), evidence_back(nc, 0);
+  std::vector<long> back_rays(nc, 0);
+  struct Ray {
+    int face, hit;
+    bool from_front;  // leaves the face's current front side
+    bool hit_front;   // arrives at the hit face's file front side
+  };
+  std::vector<Ray> cast;
+  cast.reserve(size_t(nf) * 2 * kRaysPerSide);
+  const bool several = nc > 1;
+  std::vector<int> rays_per_side(nf, kRaysPerSide);
+  for (int k = 0; k < nf; ++k) {
+    const long m = static_cast<long>(C.members[C.comp[k]].size());
+    rays_per_side[k] = static_cast<int>(std::clamp<long>((kRaysPerSurface + m - 1) / m, kRaysPerSide, 128));
+  }
+  for (int k = 0; k < nf; ++k) {
+    if (!rays.has(k)) continue;
+    std::mt19937_64 rng(0x9E3779B97F4A7C15ull ^ std::uint64_t(k) * 0xBF58476D1CE4E5B9ull);
+    const Vec3 n = rays.normal(k) * (flip[k] ? -1.0 : 1.0);
+    const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
+    for (int r = 0; r < rays_per_side[k]; ++r) {
+      const Vec3 o = rays.sample(k, rng);
+      const Vec3 d = cosine_direction(n, rng);
+      for (int side = 0; side < 2; ++side) {
+        const Vec3 dir = side == 0 ? d : Vec3(-d);
+        auto h = rays.first(o, dir, [k](int f) { return f == k; });
+        if (h.face < 0) continue;
+        if (C.comp[h.face] != C.comp[k]) {
+          // A face of its own surface at the same distance (a block's bottom on the floor) is hit first:
+          // the ray ends inside its own surface, it is no evidence.
+          const int c = C.comp[k];
+          const auto own = rays.first(o, dir, [&](int f) { return f == k || C.comp[f] != c; });
+          if (own.face >= 0 && own.t <= h.t * (1 + 1e-9) + 1e-12) h = own;
+        }
+        cast.push_back({k, h.face, side == 0, h.front});
+        if (several && C.comp[h.face] != C.comp[k]) {
+          const int c = C.comp[k];
+          (side == 0 ? evidence_front : evidence_back)[c] += area;
+          if (side == 1) ++back_rays[c];
+        }
+      }
+    }
+  }
+
+  std::vector<int> surface_flip(nc, 0);
+  std::vector<std::string> named;
+  long surfaces = 0, surface_faces = 0;
+  if (mode == Orientation::visibility) {
+    for (int c = 0; c < nc; ++c) {
+      const double total = evidence_front[c] + evidence_back[c];
+      if (back_rays[c] >= kMinBackRays && evidence_back[c] >= kBackShare * total) {
+        surface_flip[c] = 1;
+        ++surfaces;
+        surface_faces += static_cast<long>(C.members[c].size());
+        if (named.size() < 3) {
+          std::vector<int> ids;
+          for (int f : C.members[c]) ids.push_back(origin_of(s, f));
+          named.push_back("the surface of input face" + std::string(ids.size() == 1 ? " " : "s ") + id_list(ids, 4) +
+                          " (its back side gets " + std::to_string(int(std::lround(100 * evidence_back[c] / total))) +
+                          " % of the rays that reach other surfaces)");
+        }
+      }
+    }
+  }
+
+  // Apply: every flipped face counted and named.
+  long flipped = 0;
+  std::vector<int> flipped_ids;
+  for (int k = 0; k < nf; ++k) {
+    const int final_flip = flip[k] ^ surface_flip[C.comp[k]];
+    if (final_flip) {
+      flip_face(s.faces[k]);
+      ++flipped;
+      flipped_ids.push_back(origin_of(s, k));
+    }
+  }
+  report.counts["surfaces_flipped"] += 0;
+  if (flipped > 0) {
+    report.counts["faces_reoriented"] += flipped;
+    report.warnings.push_back(
+        plural(flipped, "face was", "faces were") + " reoriented (to agree with the majority of their connected "
+        "surface" + std::string(surfaces > 0 ? ", or with their whole surface" : "") + "): input face" +
+        (flipped_ids.size() == 1 ? " " : "s ") + id_list(flipped_ids));
+  }
+  if (surfaces > 0) {
+    std::string list;
+    for (size_t i = 0; i < named.size(); ++i) list += (i ? "; " : "") + named[i];
+    if (surfaces > static_cast<long>(named.size())) list += "; and " + std::to_string(surfaces - long(named.size())) + " more";
+    report.warn("surfaces_flipped", surfaces,
+                plural(surfaces, "surface was", "surfaces were") + " turned round (" + plural(surface_faces, "face", "faces") +
+                    ") because the rest of the scene sees its back (--orient consistent or file keeps the file's "
+                    "winding): " + list);
+  }
+
+  // Hint: one-sided faces whose back reaches front sides more often than their front does.
+  std::vector<int> front_lit(nf, 0), back_lit(nf, 0);
+  for (const Ray& r : cast) {
+    const int fh = flip[r.hit] ^ surface_flip[C.comp[r.hit]];
+    // r.from_front is relative to the majority orientation; a surface flip swaps it.
+    const bool from_front = r.from_front != bool(surface_flip[C.comp[r.face]]);
+    const bool lit = s.materials[s.faces[r.hit].material].two_sided || (r.hit_front != bool(fh));
+    if (!lit) continue;
+    (from_front ? front_lit : back_lit)[r.face]++;
+  }
+  std::vector<int> behind;
+  for (int k = 0; k < nf; ++k)
+    if (!s.materials[s.faces[k].material].two_sided && back_lit[k] > 2 * front_lit[k] &&
+        back_lit[k] >= rays_per_side[k] / 2)
+      behind.push_back(origin_of(s, k));
+  report.counts["faces_seen_from_behind"] += 0;
+  if (!behind.empty())
+    report.warn("faces_seen_from_behind", static_cast<long>(behind.size()),
+                plural(static_cast<long>(behind.size()), "one-sided face is", "one-sided faces are") +
+                    " seen by the scene mostly from behind (they stay black there; mark them two-sided if they "
+                    "are thin surfaces meant to reflect on both sides): input face" +
+                    (behind.size() == 1 ? " " : "s ") + id_list(behind));
+}
+
+}  // namespace detail
+}  // namespace lambert::mesh
