@@ -142,6 +142,9 @@ void intersect_pair(FaceData& f, FaceData& g, double tol) {
         // Project onto to's plane first (coplanar within tol, not exactly).
         const KE::Plane_3 plane(to.tris[0].vertex(0), to.tris[0].vertex(1), to.tris[0].vertex(2));
         const KE::Segment_3 ep(plane.projection(e.source()), plane.projection(e.target()));
+        // An edge perpendicular to the plane projects to a point: CGAL's triangle-segment intersection
+        // asserts on a degenerate segment (found by tests/fuzz on a non-planar quad given twice).
+        if (ep.is_degenerate()) continue;
         std::vector<std::array<Vec3, 2>> found;
         for (const auto& t : to.tris) {
           const auto x = CGAL::intersection(t, ep);
