@@ -5,6 +5,7 @@
 #include "union_find.hpp"
 
 #include <algorithm>
+#include <map>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -314,6 +315,45 @@ void clean_faces(PolygonSoup& s, Report& report) {
                     (pinched_ids.size() == 1 ? " " : "s ") + id_list(pinched_ids));
 }
 
+// ---- 3. duplicate faces ---------------------------------------------------------------------------------
+// Two faces with the same corners in the same cyclic order (after welding) are one surface modelled twice
+// (e.g. the public Cornell box repeats a side of each block as its "bottom"): both would receive and emit,
+// so whatever faces them would count the surface twice (row sums above 1). The later copy is removed,
+// counted and named. Coincident faces wound the opposite way (a zero-thickness sheet, seen from both sides)
+// are two surfaces and stay.
+void remove_duplicate_faces(PolygonSoup& s, Report& report) {
+  std::map<std::vector<int>, int> first;  // canonical corner cycle -> input face that has it
+  std::vector<SoupFace> out;
+  out.reserve(s.faces.size());
+  std::vector<std::string> pairs;
+  long removed = 0;
+  for (int k = 0; k < static_cast<int>(s.faces.size()); ++k) {
+    const std::vector<int>& v = s.faces[k].vertices;
+    std::vector<int> key(v.size());
+    const size_t start = static_cast<size_t>(std::min_element(v.begin(), v.end()) - v.begin());
+    for (size_t c = 0; c < v.size(); ++c) key[c] = v[(start + c) % v.size()];
+    const auto [it, added] = first.try_emplace(std::move(key), origin_of(s, k));
+    if (added) {
+      out.push_back(s.faces[k]);
+      continue;
+    }
+    ++removed;
+    if (pairs.size() < 5)
+      pairs.push_back("input face " + std::to_string(origin_of(s, k)) + " repeats input face " +
+                      std::to_string(it->second));
+  }
+  report.counts["duplicate_faces_removed"] += 0;
+  if (removed == 0) return;
+  s.faces = std::move(out);
+  std::string list;
+  for (const auto& p : pairs) list += (list.empty() ? "" : "; ") + p;
+  if (removed > static_cast<long>(pairs.size())) list += "; and " + std::to_string(removed - long(pairs.size())) + " more";
+  report.warn("duplicate_faces_removed", removed,
+              plural(removed, "face repeats", "faces repeat") +
+                  " another face corner for corner (the same surface twice, which would count twice) and " +
+                  (removed == 1 ? "was" : "were") + " removed: " + list);
+}
+
 }  // namespace
 
 PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Report& report) {
@@ -348,6 +388,7 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
   if (options.repair) {
     weld(out, tol, report);
     clean_faces(out, report);
+    remove_duplicate_faces(out, report);
     orient(out, options.orient, report);
     if (options.imprint) imprint(out, tol, report);
   }
