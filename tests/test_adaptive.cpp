@@ -29,8 +29,8 @@ std::vector<Vec3> emitter() {
 // Corners welded by position so that neighbours share vertex indices.
 mesh::PolygonSoup floor_scene(int n) {
   mesh::PolygonSoup s = mesh::make_empty_soup("floor.test");
-  mesh::Material fl{"floor", RGB::Constant(kRho), RGB::Zero(), {}};
-  mesh::Material em{"emitter", RGB::Zero(), RGB::Constant(kLe), {}};
+  mesh::Material fl{"floor", RGB::Constant(kRho), RGB::Zero(), false, {}};
+  mesh::Material em{"emitter", RGB::Zero(), RGB::Constant(kLe), false, {}};
   s.materials = {s.materials[0], fl, em};
   std::map<std::array<double, 3>, int> index;
   auto add = [&](const std::vector<Vec3>& poly, int material) {
@@ -280,7 +280,7 @@ mesh::PolygonSoup lit_room_with_block() {
   }
   EXPECT_EQ(lamps, 1);
   return soup_of(polys, material,
-                 {{"white", RGB::Constant(0.6), RGB::Zero(), {}}, {"lamp", RGB::Zero(), RGB::Constant(1.0), {}}});
+                 {{"white", RGB::Constant(0.6), RGB::Zero(), false, {}}, {"lamp", RGB::Zero(), RGB::Constant(1.0), false, {}}});
 }
 
 // Reusing the previous round's form factors changes nothing but the work: every pair of two unsplit
@@ -346,9 +346,9 @@ TEST(Adaptive, DirectIndicatorMarksPatchesStraddlingAShadowEdge) {
   polys.push_back({{a, a, 2}, {a, b, 2}, {b, b, 2}, {b, a, 2}});
   material.push_back(3);
   const auto soup = soup_of(polys, material,
-                            {{"floor", RGB::Constant(0.5), RGB::Zero(), {}},
-                             {"block", RGB::Zero(), RGB::Zero(), {}},
-                             {"lamp", RGB::Zero(), RGB::Constant(1.0), {}}});
+                            {{"floor", RGB::Constant(0.5), RGB::Zero(), false, {}},
+                             {"block", RGB::Zero(), RGB::Zero(), false, {}},
+                             {"lamp", RGB::Zero(), RGB::Constant(1.0), false, {}}});
   const mesh::Scene scene = mesh::build_scene(soup);
   const auto F = formfactor::assemble(scene.geometry);
   const auto sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field());

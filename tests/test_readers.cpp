@@ -105,8 +105,8 @@ PolygonSoup sample_soup() {
     f.group = group;
     s.faces.push_back(f);
   };
-  Material white{"white", RGB(0.7, 0.7, 0.7), RGB::Zero(), {}};
-  Material lamp{"lamp", RGB(0.1, 0.2, 1.0 / 3.0), RGB(10, 9.5, 1.0 / 7.0), {}};
+  Material white{"white", RGB(0.7, 0.7, 0.7), RGB::Zero(), false, {}};
+  Material lamp{"lamp", RGB(0.1, 0.2, 1.0 / 3.0), RGB(10, 9.5, 1.0 / 7.0), false, {}};
   s.materials.push_back(white);
   s.materials.push_back(lamp);
   s.groups = {"floor", "light"};
@@ -125,8 +125,8 @@ PolygonSoup colour_soup(bool byte_colours) {
   for (auto& f : s.faces) f.group = -1;
   s.groups.clear();
   s.materials.resize(1);
-  Material a{"a", byte_colours ? RGB(1.0, 0.0, 128 / 255.0) : RGB(0.3, 0.3, 0.3), RGB::Zero(), {}};
-  Material b{"b", byte_colours ? RGB(17 / 255.0, 1.0, 1.0) : RGB(1.0 / 3.0, 1.0, 1e-3), RGB::Zero(), {}};
+  Material a{"a", byte_colours ? RGB(1.0, 0.0, 128 / 255.0) : RGB(0.3, 0.3, 0.3), RGB::Zero(), false, {}};
+  Material b{"b", byte_colours ? RGB(17 / 255.0, 1.0, 1.0) : RGB(1.0 / 3.0, 1.0, 1e-3), RGB::Zero(), false, {}};
   s.materials.push_back(a);
   s.materials.push_back(b);
   return s;

@@ -187,7 +187,7 @@ TEST(RealModelsOrient, RoomWoundOutwardAroundABlockIsTurnedRound) {
 TEST(RealModelsOrient, PublicModelsAreNotReoriented) {
   // The public Cornell box (open front, two closed boxes) and the shipped floor plan are valid:
   // nothing is turned round.
-  for (const std::string path : {shared_model("CornellBox-Original.obj"),
+  for (const std::string& path : {shared_model("CornellBox-Original.obj"),
                                  std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj"}) {
     if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found (../shared/models is outside the repository)";
     Report r;
@@ -411,7 +411,9 @@ TEST(RealModelsImprint, FaceCrossingWallsGivesFormFactorsInUnitRangeAndRowSumsOf
         row += M(i, j);
       }
       EXPECT_LE(row, 1 + 1e-6) << "patch " << i << " (input face " << scene.face_id[i] << ")";
-      if (inside) EXPECT_GE(row, 1 - 1e-6) << "patch " << i << " (input face " << scene.face_id[i] << ")";
+      if (inside) {
+        EXPECT_GE(row, 1 - 1e-6) << "patch " << i << " (input face " << scene.face_id[i] << ")";
+      }
     }
   }
 }

@@ -96,7 +96,9 @@ TEST_F(Stl, BinaryAndAsciiRoundTripsKeepFacetOrderAndCoordinates) {
     for (const auto& f : back.faces) EXPECT_EQ(f.material, 0);
     EXPECT_EQ(back.materials[0].name, "default");
     EXPECT_EQ(back.faces_without_material, 0) << "STL has no materials: nothing to warn about";
-    if (!binary) EXPECT_EQ(back.faces[3].line, 2 + 7 * 3) << "ASCII facets know their line";
+    if (!binary) {
+      EXPECT_EQ(back.faces[3].line, 2 + 7 * 3) << "ASCII facets know their line";
+    }
     // prepare welds the 36 corners into the cube's 8 and keeps its (outward) winding.
     Report r;
     const PolygonSoup ready = prepare(back, {}, r);

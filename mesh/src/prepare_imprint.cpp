@@ -486,9 +486,9 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
   double hidden_area = 0;
   constexpr int kRays = 16;
   auto coplanar = [&](int f, int g) {
-    const Vec3 &nf = rays.normal(f), &ng = rays.normal(g);
-    return std::abs(nf.dot(ng)) > 1 - 1e-9 &&
-           std::abs(nf.dot(s.positions[s.faces[g].vertices[0]] - s.positions[s.faces[f].vertices[0]])) <= tol;
+    const Vec3 &n_f = rays.normal(f), &n_g = rays.normal(g);
+    return std::abs(n_f.dot(n_g)) > 1 - 1e-9 &&
+           std::abs(n_f.dot(s.positions[s.faces[g].vertices[0]] - s.positions[s.faces[f].vertices[0]])) <= tol;
   };
   std::vector<Vec3> probe(n, Vec3::Zero());
   for (int k = 0; k < n; ++k) {
