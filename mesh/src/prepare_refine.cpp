@@ -17,6 +17,7 @@
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
 #include "prepare_internal.hpp"
+#include "triangulate_internal.hpp"
 #include "union_find.hpp"
 
 namespace lambert::mesh::detail {
@@ -495,29 +496,7 @@ class Refiner {
       if (w->point() != K::Point_2(at.x(), at.y())) return false;
     }
     // Inside = odd number of constraints crossed from the infinite face.
-    for (auto f : cdt.all_face_handles()) f->info() = -1;
-    std::deque<std::pair<CDT::Face_handle, int>> border{{cdt.infinite_face(), 0}};
-    while (!border.empty()) {
-      auto [start, level] = border.front();
-      border.pop_front();
-      if (start->info() >= 0) continue;
-      std::deque<CDT::Face_handle> queue{start};
-      start->info() = level;
-      while (!queue.empty()) {
-        const auto f = queue.front();
-        queue.pop_front();
-        for (int i = 0; i < 3; ++i) {
-          const auto g = f->neighbor(i);
-          if (g->info() >= 0) continue;
-          if (cdt.is_constrained({f, i})) {
-            border.push_back({g, level + 1});
-          } else {
-            g->info() = level;
-            queue.push_back(g);
-          }
-        }
-      }
-    }
+    mark_nesting_levels(cdt);
     std::vector<std::array<int, 3>> tris;
     for (auto f : cdt.finite_face_handles())
       if (f->info() % 2 == 1) tris.push_back({f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()});

@@ -45,29 +45,7 @@ std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2
     }
     for (int k = 0; k < m; ++k) cdt.insert_constraint(vh[k], vh[(k + 1) % m]);
     // Inside = odd nesting level across constrained edges, counted from the infinite face.
-    for (auto f : cdt.all_face_handles()) f->info() = -1;
-    std::deque<std::pair<CDT::Face_handle, int>> border{{cdt.infinite_face(), 0}};
-    while (!border.empty()) {
-      auto [start, level] = border.front();
-      border.pop_front();
-      if (start->info() >= 0) continue;
-      std::deque<CDT::Face_handle> queue{start};
-      start->info() = level;
-      while (!queue.empty()) {
-        const auto f = queue.front();
-        queue.pop_front();
-        for (int i = 0; i < 3; ++i) {
-          const auto g = f->neighbor(i);
-          if (g->info() >= 0) continue;
-          if (cdt.is_constrained({f, i})) {
-            border.push_back({g, level + 1});
-          } else {
-            g->info() = level;
-            queue.push_back(g);
-          }
-        }
-      }
-    }
+    mark_nesting_levels(cdt);
     std::vector<std::array<int, 3>> tris;
     tris.reserve(size_t(m - 2));
     for (auto f : cdt.finite_face_handles()) {
