@@ -54,10 +54,13 @@ mesh::PolygonSoup read_input(const CommonOptions& o, PhaseTimer& timer) {
 }
 
 // Reads, applies --materials, prepares, validates. Prints validation warnings unless quiet.
-mesh::Scene load(const CommonOptions& o, PhaseTimer& timer) {
+// `solving`: the run solves for radiance (a scene without emitters is then worth a warning).
+mesh::Scene load(const CommonOptions& o, PhaseTimer& timer, bool solving = true) {
   const mesh::PolygonSoup soup = read_input(o, timer);
   timer.start("prepare");
-  mesh::Scene scene = mesh::prepare_and_build(soup, o.prepare);
+  mesh::BuildOptions build;
+  build.warn_no_emitter = solving;
+  mesh::Scene scene = mesh::prepare_and_build(soup, o.prepare, build);
   timer.stop();
   for (const auto& w : scene.report.warnings) say(o, "lambert: warning: " + w);
   return scene;
@@ -338,7 +341,10 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
     else
       s += "  error bound  none (fixed form-factor rule, or reflectance x row sum >= 1)\n";
   }
-  for (const Finding& f : findings) s += fmt::format("  {}  {}\n", f.fatal ? "FAILED     " : "warning    ", f.message);
+  // Round-off entries are counted, not a problem: a note, not a warning.
+  for (const Finding& f : findings)
+    s += fmt::format("  {}  {}\n", f.fatal ? "FAILED     " : f.key == "entries_roundoff" ? "note       " : "warning    ",
+                     f.message);
   s += fmt::format("  phases       {}\n", phases_line(timer));
   return s;
 }
@@ -410,7 +416,7 @@ int run_info(const CommonOptions& o) {
 
 int run_formfactors(const CommonOptions& o) {
   PhaseTimer timer;
-  mesh::Scene scene = load(o, timer);
+  mesh::Scene scene = load(o, timer, /*solving=*/false);
   formfactor::Stats st;
   Progress progress("form factors", !o.quiet);
   const formfactor::Options f = ff_options(o, max_reflectance(scene.materials), &progress);

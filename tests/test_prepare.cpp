@@ -86,6 +86,20 @@ std::string all_warnings(const Report& r) {
   return s;
 }
 
+// A file that stores a copy of each shared corner per face (as many exporters do, e.g. the public Cornell
+// box) changes no geometry when the copies are shared: counted, but no warning, since nothing was repaired.
+TEST(PrepareWeld, ExactCopiesAreSharedWithoutAWarning) {
+  const PolygonSoup s = soup_of({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},   // left square
+                                 {1, 0, 0}, {2, 0, 0}, {2, 1, 0}, {1, 1, 0}},  // right square, own copies
+                                {{0, 1, 2, 3}, {4, 5, 6, 7}});
+  Report r;
+  const PolygonSoup out = prepare(s, {}, r);
+  EXPECT_EQ(used_vertices(out), 6) << all_warnings(r);
+  EXPECT_EQ(count(r, "vertices_merged"), 2);
+  EXPECT_EQ(count(r, "vertices_shared_exact"), 2);
+  EXPECT_TRUE(warning_with(r, "merged").empty()) << all_warnings(r);
+}
+
 }  // namespace
 
 // ---- weld ------------------------------------------------------------------------------------------
@@ -106,6 +120,7 @@ TEST(PrepareWeld, WeldMergesDuplicateVertices) {
   EXPECT_EQ(out.faces[1].vertices, (std::vector<int>{1, 6, 7, 2}));
   EXPECT_EQ(out.positions[2], s.positions[2]) << "the lowest index keeps its coordinates";
   EXPECT_TRUE(has(warning_with(r, "merged"), "vertex 4")) << all_warnings(r);
+  EXPECT_EQ(count(r, "vertices_shared_exact"), 1) << "vertex 4 is at exactly vertex 1's position";
   // build_scene then sees one connected surface: no duplicates, the shared edge is interior.
   const Scene scene = build_scene(out);
   EXPECT_EQ(scene.report.counts.count("duplicate_vertices"), 0u) << all_warnings(scene.report);

@@ -127,6 +127,19 @@ TEST_F(Cli, StatsHaveOneSchemaForSolveAdaptiveSolveAndFormfactors) {
   EXPECT_EQ(c["command"], "formfactors");
 }
 
+// Form factors need no emitter: `formfactors` does not warn that "the solution will be zero" (it solves
+// nothing); `solve` does.
+TEST_F(Cli, NoEmitterWarningOnlyWhereSomethingIsSolved) {
+  const std::string obj = write("close.obj", kCloseSquares);
+  write("close.mtl", "newmtl floor\nKd 0.5\nnewmtl lamp\nKd 0.5\n");
+  const auto ff = run("formfactors " + obj + " -o " + path("F.csv"));
+  EXPECT_EQ(ff.status, 0) << ff.output;
+  EXPECT_EQ(ff.output.find("no emitter"), std::string::npos) << ff.output;
+  const auto so = run("solve " + obj + " -o " + path("s.vtu"));
+  EXPECT_EQ(so.status, 0) << so.output;
+  EXPECT_NE(so.output.find("no emitter"), std::string::npos) << so.output;
+}
+
 TEST_F(Cli, AdaptiveRoundWhoseSolveDoesNotConvergeExitsThree) {
   const std::string obj = write("close.obj", kCloseSquares);
   write("close.mtl", "newmtl floor\nKd 0.9\nnewmtl lamp\nKd 0.9\nKe 1\n");

@@ -208,15 +208,20 @@ void weld(PolygonSoup& s, double tol, Report& report) {
     for (size_t i = 1; i < order.size(); ++i)
       if (s.positions[order[i]] == s.positions[order[i - 1]]) uf.unite(order[i], order[i - 1]);
   }
-  long merged = 0;
+  // Vertices at exactly the position they join (a file that stores a copy of each corner per face, as many
+  // exporters do) change no geometry: counted, but not warned about. Only moved vertices are a repair.
+  long merged = 0, shared = 0;  // moved, and at exactly the same position
   int ex = -1;
   for (int v = 0; v < nv; ++v)
     if (used[v] && uf.find(v) != v) {
-      if (merged++ == 0) ex = v;
+      if (ex < 0) ex = v;
+      ++(s.positions[v] == s.positions[uf.find(v)] ? shared : merged);
     }
   for (auto& f : s.faces)
     for (int& v : f.vertices) v = uf.find(v);
-  report.counts["vertices_merged"] += 0;
+  // vertices_merged counts both kinds (as before); vertices_shared_exact says how many of them did not move.
+  report.counts["vertices_merged"] += shared;
+  report.counts["vertices_shared_exact"] += shared;
   if (kept_apart > 0)
     report.warn("vertices_not_merged", kept_apart,
                 plural(kept_apart, "pair of vertices", "pairs of vertices") + " within the weld tolerance " + num(tol) +
@@ -224,8 +229,9 @@ void weld(PolygonSoup& s, double tol, Report& report) {
                     num(100 * kLocalWeldShare) + " % of the shortest edge at them), so welding would change the shape");
   if (merged > 0)
     report.warn("vertices_merged", merged,
-                plural(merged, "vertex was", "vertices were") + " merged into a vertex closer than " + num(tol) +
-                    " m, e.g. " + vertex_at(s, ex) + " into " + vertex_at(s, uf.find(ex)));
+                plural(merged + shared, "vertex was", "vertices were") + " merged into a vertex closer than " +
+                    num(tol) + " m (" + std::to_string(merged) + " moved, " + std::to_string(shared) +
+                    " at exactly the same position), e.g. " + vertex_at(s, ex) + " into " + vertex_at(s, uf.find(ex)));
 }
 
 // ---- 2. repeated corners, pinched and degenerate faces ---------------------------------------------

@@ -434,8 +434,10 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
   if (detached > 0)
     report.warn("nonmanifold_faces_detached", detached,
                 std::to_string(detached) + " face" + (detached == 1 ? "" : "s") +
-                    " could not be joined to the mesh (non-manifold edge or vertex, or orientation flipped "
-                    "against a neighbour) and got private copies of their vertices, e.g. " +
+                    " could not be joined to the half-edge mesh, because an edge is shared by more than two faces "
+                    "(a non-manifold edge, valid where a wall stands on a slab) or a neighbour is wound against it; "
+                    "they got private copies of their vertices, so point-data radiance is not averaged across those "
+                    "edges (cell data and form factors are unaffected), e.g. " +
                     face_at(soup, ex_detached));
   if (static_cast<int>(mesh.n_faces()) != np || scene.geometry.size() != np)
     throw std::logic_error("build_scene: " + std::to_string(mesh.n_faces()) + " mesh faces, " +
@@ -445,7 +447,7 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
   // 7. Scene-level warnings.
   bool emitter = false;
   for (int p = 0; p < np && !emitter; ++p) emitter = (scene.emission(p) > 0).any();
-  if (!emitter) report.warn("no_emitter", 1, "no emitter: the solution will be zero");
+  if (!emitter && options.warn_no_emitter) report.warn("no_emitter", 1, "no emitter: the solution will be zero");
   if (soup.faces_without_material > 0)
     report.warn("faces_without_material", soup.faces_without_material,
                 std::to_string(soup.faces_without_material) + " face" +

@@ -30,6 +30,9 @@ struct BuildOptions {
   // A polygon is non-planar when a corner lies farther than this from its best plane, relative to
   // the square root of its area (1e-6: far below any modelling precision, above round-off).
   double planarity_tolerance = 1e-6;
+  // Warn when no material emits ("the solution will be zero"): for callers that solve. Form factors alone
+  // need no emitter.
+  bool warn_no_emitter = true;
 };
 
 struct Scene {
