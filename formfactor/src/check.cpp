@@ -1,6 +1,8 @@
 // Independent row-sum check: cosine-weighted rays from sampled patches, first hits on front sides (Embree).
 #include "lambert/formfactor/check.hpp"
 
+#include "embree_scene.hpp"
+
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -44,27 +46,7 @@ class FirstHit {
     if (!device_) throw std::runtime_error("Embree: cannot create device");
     scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
-    const size_t ntri = g.triangles.size();
-    if (ntri > 0) {
-      RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-      auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                              3 * sizeof(float), 3 * ntri));
-      auto* ib = static_cast<unsigned*>(
-          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), ntri));
-      tri_patch_.resize(ntri);
-      for (int p = 0; p < g.size(); ++p)
-        for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) {
-          tri_patch_[size_t(k)] = p;
-          for (int c = 0; c < 3; ++c) {
-            const Vec3 v = g.points[g.triangles[k][c]] - centre_;
-            for (int a = 0; a < 3; ++a) vb[9 * size_t(k) + 3 * c + a] = float(v[a]);
-            ib[3 * size_t(k) + c] = unsigned(3 * k + c);
-          }
-        }
-      rtcCommitGeometry(geom);
-      rtcAttachGeometry(scene_, geom);
-      rtcReleaseGeometry(geom);
-    }
+    detail::add_patch_triangles(device_, scene_, g, {}, centre_, tri_patch_);
     rtcCommitScene(scene_);
   }
   ~FirstHit() {

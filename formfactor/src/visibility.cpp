@@ -1,6 +1,8 @@
 // Occlusion casters: Embree 3 (single precision BVH) and brute force (double, every triangle).
 #include "lambert/formfactor/visibility.hpp"
 
+#include "embree_scene.hpp"
+
 #include <embree3/rtcore.h>
 
 #include <algorithm>
@@ -76,13 +78,6 @@ class EmbreeVisibility final : public Visibility {
     scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
-    std::vector<int> patches = occluders;
-    if (patches.empty()) {
-      patches.resize(g.size());
-      for (int p = 0; p < g.size(); ++p) patches[p] = p;
-    }
-    size_t ntri = 0;
-    for (int p : patches) ntri += size_t(g.triangle_offsets[p + 1] - g.triangle_offsets[p]);
     // Embree works in float: coordinates relative to the centre of the scene's bounding box, so a
     // scene 5e6 m from the origin (georeferenced) is traced as precisely as the same scene at the
     // origin (float spacing ~ 1e-7 x the scene's size instead of ~0.5 m). Rays are shifted the same way.
@@ -90,29 +85,7 @@ class EmbreeVisibility final : public Visibility {
     for (const Vec3& v : g.points) box.extend(v);
     if (!box.isEmpty()) centre_ = box.center();
     planes_ = Planes(g, centre_);
-    if (ntri > 0) {
-      RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-      auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                              3 * sizeof(float), 3 * ntri));
-      auto* ib = static_cast<unsigned*>(
-          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), ntri));
-      tri_patch_.reserve(ntri);
-      size_t t = 0;
-      for (int p : patches)
-        for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k, ++t) {
-          for (int c = 0; c < 3; ++c) {
-            const Vec3 v = g.points[g.triangles[k][c]] - centre_;
-            vb[9 * t + 3 * c + 0] = float(v.x());
-            vb[9 * t + 3 * c + 1] = float(v.y());
-            vb[9 * t + 3 * c + 2] = float(v.z());
-            ib[3 * t + c] = unsigned(3 * t + c);
-          }
-          tri_patch_.push_back(p);
-        }
-      rtcCommitGeometry(geom);
-      rtcAttachGeometry(scene_, geom);
-      rtcReleaseGeometry(geom);
-    }
+    detail::add_patch_triangles(device_, scene_, g, occluders, centre_, tri_patch_);
     rtcCommitScene(scene_);
   }
   ~EmbreeVisibility() override {
