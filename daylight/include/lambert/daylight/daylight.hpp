@@ -1,0 +1,104 @@
+#pragma once
+// Daylight: the sky's direct irradiance on patches (an emission term for the solve), glazing, and irradiance at
+// sensor points gathered from every patch (exact point-to-polygon kernel, ray visibility) plus the sky.
+// Units: as the sky's (W m^-2 sr^-1 -> W m^-2; cd m^-2 -> lux). Colour: RGB per patch / sensor; the sky is grey.
+// Method and its limits: docs/physics.md §9.
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lambert/daylight/sky.hpp"
+#include "lambert/formfactor/dense.hpp"
+#include "lambert/formfactor/visibility.hpp"
+#include "lambert/mesh/scene.hpp"
+
+namespace lambert::daylight {
+
+// Luminance weights of an RGB triple and the luminous efficacy that turns W into lm (Radiance's convention:
+// Y = 0.265 R + 0.670 G + 0.065 B, 179 lm/W; see docs/physics.md §9 for why).
+constexpr double kWeightR = 0.265, kWeightG = 0.670, kWeightB = 0.065;
+constexpr double kEfficacy = 179.0;  // lm W^-1
+inline double luminance_weighted(const RGB& c) { return kWeightR * c[0] + kWeightG * c[1] + kWeightB * c[2]; }
+
+// Point-to-patches gathering with visibility: the one place daylight traces rays (through formfactor's
+// Visibility, so Embree stays inside formfactor).
+class Gatherer {
+ public:
+  // rays: visibility samples per (point, patch) pair that may be occluded (>= 1).
+  Gatherer(const mesh::PatchGeometry& geometry, int rays);
+  ~Gatherer();
+  struct Result {
+    RGB from_patches = RGB::Zero();  // pi sum_j V_j F(x -> P_j) L_j: light from the patches (needs radiance)
+    Moments covered;                 // sum_j V_j Moments(P_j): what the patches hide of sky and ground
+    Moments unobstructed;            // hemisphere_moments(n, up)
+  };
+  // x, n (unit): the point and its normal; radiance: patches x 3 or empty (then from_patches = 0); ignore: a
+  // patch the point lies on (its own plane's patches are ignored too), or -1.
+  Result gather(const Vec3& x, const Vec3& n, const Vec3& up, const ColorField* radiance, int ignore) const;
+  long long rays_cast() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct PatchSkyStats {
+  long long entries = 0;        // nonzero F_ij weighted by the sky's direction distribution
+  int patches_lit = 0;          // patches with E_sky > 0
+  int negative_set_to_zero = 0; // patches whose E_sky came out < 0 (F row error), set to 0 (counted)
+  double most_negative = 0;     // the most negative value before that, W m^-2 (or lux)
+  int glazing_patches = 0;
+  double seconds = 0;
+};
+
+// Direct sky (and ground) irradiance on each patch, averaged over the patch: E_sky,i = E_unobstructed(n_i) -
+// pi sum_j F_ij w_ij, w_ij the sky radiance averaged (cosine-weighted) over P_j's directions seen from i's
+// centroid (exact moments; = L for the uniform sky, so then E_sky,i = pi L (1 - sum_j F_ij) exactly).
+// F: the assembled (occluded) form factors of scene.geometry. Returns patches x 1 values.
+std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky,
+                                         const formfactor::DenseMatrixOperator::Matrix& F, PatchSkyStats* stats);
+
+// Irradiance on the outside (back) of each glazing patch (transmittance > 0) from sky and ground, averaged over
+// the patch, occluded by the scene's patches (two-sided); 0 for other patches.
+std::vector<double> glazing_outside_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather);
+
+// The emission the solve needs: Le_i + rho_i E_sky,i / pi + tau_i E_out,i / pi per channel.
+ColorField daylight_emission(const mesh::Scene& scene, const std::vector<double>& sky_irradiance,
+                             const std::vector<double>& outside_irradiance);
+
+// --- sensors -----------------------------------------------------------------------------------------------
+struct Sensor {
+  Vec3 position = Vec3::Zero();
+  Vec3 normal = Vec3::UnitY();  // unit
+};
+
+// CSV with columns x,y,z,nx,ny,nz (metres; the normal need not be unit, is normalised), one sensor per line, an
+// optional header line (first line, not numeric), blank lines and lines starting with '#' skipped. Throws
+// InputError naming file:line for a wrong column count, a non-number, NaN/Inf, or a zero normal; and for a
+// file without sensors.
+std::vector<Sensor> read_sensors_csv(const std::string& path);
+
+// Work-plane grid (docs/physics.md §9): a square grid of `spacing` (m) at `height` (m) above the floors, normal
+// up. Floors are patches facing up (normal within 1 degree of up) with no other up-facing surface within
+// 1.5 m below them (so table tops, beds and shelves are not floors, a rug on the floor is). Grid nodes lie on the
+// lattice origin + spacing (i + 1/2, j + 1/2) over the floors' bounding box; a node is kept when its foot lies
+// on a floor patch, the vertical segment from the foot to the work plane is unobstructed, and nothing lies
+// within `inset` (m) of it horizontally (8 rays: walls, and furniture reaching the work plane). Order: floor
+// patches in scene order, then lattice rows.
+struct WorkPlaneOptions {
+  double height = 0.85, spacing = 0.5, inset = 0.5;
+};
+std::vector<Sensor> work_plane_grid(const mesh::PatchGeometry& geometry, const Vec3& up, const WorkPlaneOptions& options);
+
+struct SensorResult {
+  RGB irradiance = RGB::Zero();  // total, per channel
+  RGB from_patches = RGB::Zero();  // interreflected part (and electric light)
+  double sky = 0;                // the sky component (direct sky + ground), grey
+};
+// Irradiance at each sensor: from every patch (exact kernel, visibility by rays) with the solved radiance, plus
+// the sky (sky may be null: no daylight).
+std::vector<SensorResult> evaluate_sensors(const std::vector<Sensor>& sensors, const Gatherer& gather,
+                                           const ColorField& radiance, const Sky* sky, const Vec3& up);
+
+}  // namespace lambert::daylight

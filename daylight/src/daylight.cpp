@@ -1,0 +1,232 @@
+// Sky irradiance on patches, glazing, and gathering at points (docs/physics.md §9).
+#include "lambert/daylight/daylight.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+
+#include "lambert/formfactor/kernel.hpp"
+
+namespace lambert::daylight {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct Sample {
+  Vec3 p;
+  double area;
+};
+
+// Stratified points on a patch: each triangle of its triangulation split into s^2 congruent sub-triangles
+// (s the smallest with 2-ish x s^2 x triangles >= count), the sub-triangles' centroids with their areas.
+void patch_samples(const mesh::PatchGeometry& g, int p, int count, std::vector<Sample>& out) {
+  out.clear();
+  const int nt = g.triangle_offsets[p + 1] - g.triangle_offsets[p];
+  int s = 1;
+  while (s * s * nt < count) ++s;
+  for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
+    const Vec3 &A = g.points[g.triangles[t][0]], &B = g.points[g.triangles[t][1]], &C = g.points[g.triangles[t][2]];
+    const double area = 0.5 * (B - A).cross(C - A).norm() / double(s * s);
+    const Vec3 u = (B - A) / double(s), v = (C - A) / double(s);
+    for (int i = 0; i < s; ++i)
+      for (int j = 0; i + j < s; ++j) {
+        out.push_back({A + (i + 1.0 / 3) * u + (j + 1.0 / 3) * v, area});           // upright sub-triangle
+        if (i + j + 1 < s) out.push_back({A + (i + 2.0 / 3) * u + (j + 2.0 / 3) * v, area});  // inverted one
+      }
+  }
+}
+
+}  // namespace
+
+struct Gatherer::Impl {
+  const mesh::PatchGeometry& g;
+  std::vector<std::vector<Sample>> samples;
+  std::vector<double> offset;  // n_p . c_p
+  std::unique_ptr<formfactor::Visibility> vis;
+  bool occluders = false;  // some patch can block a segment between scene points
+  double eps = 0, ray_offset = 0;
+  mutable std::atomic<long long> rays{0};
+
+  Impl(const mesh::PatchGeometry& geometry, int count) : g(geometry) {
+    samples.resize(size_t(g.size()));
+    offset.resize(size_t(g.size()));
+    Eigen::AlignedBox3d box;
+    for (const Vec3& v : g.points) box.extend(v);
+    const double diag = box.isEmpty() ? 1.0 : box.diagonal().norm();
+    eps = 1e-9 * diag;
+    ray_offset = 1e-7 * diag;
+    for (int p = 0; p < g.size(); ++p) {
+      patch_samples(g, p, count, samples[size_t(p)]);
+      offset[size_t(p)] = g.normal[p].dot(g.centroid[p]);
+    }
+    occluders = !formfactor::potential_occluders(g).empty();
+    vis = formfactor::make_embree_visibility(g);
+  }
+
+  bool coplanar(int p, int q) const {
+    const double c = g.normal[p].dot(g.normal[q]);
+    if (std::abs(c) < 1 - 1e-9) return false;
+    return std::abs(offset[size_t(p)] - (c > 0 ? offset[size_t(q)] : -offset[size_t(q)])) <= eps;
+  }
+
+  // Kernel-weighted fraction of patch j visible from x (rays from x, nudged along n, to j's samples).
+  double visible_fraction(const Vec3& x, const Vec3& n, int j, int ignore) const {
+    const auto& S = samples[size_t(j)];
+    thread_local std::vector<Vec3> from, to;
+    thread_local std::vector<std::uint8_t> hidden;
+    thread_local std::vector<double> w;
+    from.assign(S.size(), x + ray_offset * n);
+    to.resize(S.size());
+    hidden.assign(S.size(), 0);
+    w.resize(S.size());
+    double wsum = 0;
+    for (size_t k = 0; k < S.size(); ++k) {
+      to[k] = S[k].p;
+      const Vec3 d = S[k].p - x;
+      const double r2 = d.squaredNorm();
+      w[k] = r2 > 0 ? std::max(0.0, n.dot(d)) * std::abs(g.normal[j].dot(d)) / (r2 * r2) * S[k].area : 0.0;
+      wsum += w[k];
+    }
+    if (!(wsum > 0)) {
+      for (size_t k = 0; k < S.size(); ++k) w[k] = S[k].area;
+      wsum = 0;
+      for (double v : w) wsum += v;
+    }
+    vis->occluded(from, to, ignore, j, hidden);
+    rays += (long long)S.size();
+    double seen = 0;
+    for (size_t k = 0; k < S.size(); ++k)
+      if (!hidden[k]) seen += w[k];
+    return seen / wsum;
+  }
+};
+
+Gatherer::Gatherer(const mesh::PatchGeometry& geometry, int rays) : impl_(std::make_unique<Impl>(geometry, std::max(1, rays))) {}
+Gatherer::~Gatherer() = default;
+long long Gatherer::rays_cast() const { return impl_->rays.load(); }
+
+Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, const ColorField* radiance,
+                                  int ignore) const {
+  const Impl& I = *impl_;
+  const mesh::PatchGeometry& g = I.g;
+  Result r;
+  r.unobstructed = hemisphere_moments(n, up);
+  // Rays are needed when some patch can block a segment from x: x behind some patch's plane, or patches that
+  // can block segments between scene points.
+  bool rays = I.occluders;
+  for (int k = 0; k < g.size() && !rays; ++k)
+    if (k != ignore && g.normal[k].dot(x) - I.offset[size_t(k)] < -I.eps && !(ignore >= 0 && I.coplanar(k, ignore)))
+      rays = true;
+  for (int j = 0; j < g.size(); ++j) {
+    if (j == ignore || (ignore >= 0 && I.coplanar(j, ignore))) continue;
+    const auto poly = g.polygon(j);
+    const Moments m = polygon_moments(x, n, up, poly);
+    if (!(m.cos_above + m.cos_below > 0)) continue;
+    const double V = rays ? I.visible_fraction(x, n, j, ignore) : 1.0;
+    if (!(V > 0)) continue;
+    r.covered.cos_above += V * m.cos_above;
+    r.covered.cos_up_above += V * m.cos_up_above;
+    r.covered.cos_below += V * m.cos_below;
+    if (radiance && g.normal[j].dot(x) - I.offset[size_t(j)] > 0) {
+      const double F = formfactor::point_to_polygon(x, n, poly);
+      r.from_patches += (V * kPi * F) * radiance->row(j).transpose().array();
+    }
+  }
+  return r;
+}
+
+std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky,
+                                         const formfactor::DenseMatrixOperator::Matrix& F, PatchSkyStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const mesh::PatchGeometry& g = scene.geometry;
+  const int N = g.size();
+  LAMBERT_CHECK(F.rows() == N && F.cols() == N, "patch_sky_irradiance: F does not match the scene");
+  std::vector<double> E(size_t(N), 0.0);
+  std::atomic<long long> entries{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, N, 8), [&](const tbb::blocked_range<int>& range) {
+    long long local = 0;
+    for (int i = range.begin(); i < range.end(); ++i) {
+      const Vec3& c = g.centroid[i];
+      const Vec3& n = g.normal[i];
+      double covered = 0;
+      for (int j = 0; j < N; ++j) {
+        const double f = F(i, j);
+        if (!(f > 0)) continue;
+        const Moments m = polygon_moments(c, n, sky.up, g.polygon(j));
+        const double tot = m.cos_above + m.cos_below;
+        const double w = tot > 0 ? irradiance(sky, m) / tot : sky.radiance_at((g.centroid[j] - c).normalized());
+        covered += kPi * f * w;
+        ++local;
+      }
+      E[size_t(i)] = irradiance(sky, hemisphere_moments(n, sky.up)) - covered;
+    }
+    entries += local;
+  });
+  PatchSkyStats st;
+  st.entries = entries.load();
+  for (int i = 0; i < N; ++i) {
+    double& e = E[size_t(i)];
+    if (e < 0) {
+      ++st.negative_set_to_zero;
+      st.most_negative = std::min(st.most_negative, e);
+      e = 0;
+    }
+    if (e > 0) ++st.patches_lit;
+    if ((scene.materials[scene.material[i]].transmittance > 0).any()) ++st.glazing_patches;
+  }
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (stats) *stats = st;
+  return E;
+}
+
+std::vector<double> glazing_outside_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather) {
+  const mesh::PatchGeometry& g = scene.geometry;
+  std::vector<double> E(size_t(g.size()), 0.0);
+  std::vector<int> glazing;
+  for (int p = 0; p < g.size(); ++p)
+    if ((scene.materials[scene.material[p]].transmittance > 0).any()) glazing.push_back(p);
+  tbb::parallel_for(size_t(0), glazing.size(), [&](size_t k) {
+    const int p = glazing[k];
+    std::vector<Sample> S;
+    patch_samples(g, p, 16, S);
+    double sum = 0, area = 0;
+    for (const Sample& s : S) {
+      const Gatherer::Result r = gather.gather(s.p, -g.normal[p], sky.up, nullptr, p);
+      sum += s.area * (irradiance(sky, r.unobstructed) - irradiance(sky, r.covered));
+      area += s.area;
+    }
+    E[size_t(p)] = area > 0 ? sum / area : 0.0;
+  });
+  return E;
+}
+
+ColorField daylight_emission(const mesh::Scene& scene, const std::vector<double>& sky_irradiance,
+                             const std::vector<double>& outside_irradiance) {
+  ColorField Le = scene.emission_field();
+  for (int p = 0; p < scene.patches(); ++p) {
+    const mesh::Material& m = scene.materials[scene.material[p]];
+    const double es = p < int(sky_irradiance.size()) ? sky_irradiance[size_t(p)] : 0.0;
+    const double eo = p < int(outside_irradiance.size()) ? outside_irradiance[size_t(p)] : 0.0;
+    for (int c = 0; c < 3; ++c) Le(p, c) += (m.reflectance[c] * es + m.transmittance[c] * eo) / kPi;
+  }
+  return Le;
+}
+
+std::vector<SensorResult> evaluate_sensors(const std::vector<Sensor>& sensors, const Gatherer& gather,
+                                           const ColorField& radiance, const Sky* sky, const Vec3& up) {
+  std::vector<SensorResult> out(sensors.size());
+  tbb::parallel_for(size_t(0), sensors.size(), [&](size_t k) {
+    const Gatherer::Result r = gather.gather(sensors[k].position, sensors[k].normal, up, &radiance, -1);
+    SensorResult& s = out[k];
+    s.from_patches = r.from_patches;
+    s.sky = sky ? irradiance(*sky, r.unobstructed) - irradiance(*sky, r.covered) : 0.0;
+    s.irradiance = s.from_patches + s.sky;
+  });
+  return out;
+}
+
+}  // namespace lambert::daylight
