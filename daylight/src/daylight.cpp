@@ -1,6 +1,7 @@
 // Sky irradiance on patches, glazing, and gathering at points (docs/physics.md §9).
 #include "lambert/daylight/daylight.hpp"
 
+#include <boost/polygon/polygon.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -38,6 +39,89 @@ void patch_samples(const mesh::PatchGeometry& g, int p, int count, std::vector<S
         if (i + j + 1 < s) out.push_back({A + (i + 2.0 / 3) * u + (j + 2.0 / 3) * v, area});  // inverted one
       }
   }
+}
+
+// Sutherland-Hodgman on corners relative to the apex: the part with d . p >= 0.
+void clip_plane(const std::vector<Vec3>& poly, const Vec3& d, std::vector<Vec3>& out) {
+  out.clear();
+  const size_t m = poly.size();
+  if (m == 0) return;
+  double sp = d.dot(poly[m - 1]);
+  for (size_t k = 0; k < m; ++k) {
+    const Vec3& prev = poly[(k + m - 1) % m];
+    const Vec3& cur = poly[k];
+    const double sc = d.dot(cur);
+    if (sc >= 0) {
+      if (sp < 0) out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
+      out.push_back(cur);
+    } else if (sp > 0) {
+      out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
+    }
+    sp = sc;
+  }
+  if (out.size() < 3) out.clear();
+}
+
+namespace bp = boost::polygon;
+constexpr double kGridScale = double(1 << 28);  // hemicube face coordinates [-1, 1] -> integers
+
+// One face of the hemicube around n: direction f, in-face axes ea, eb; the face is [-1, 1] x [b0, 1] in
+// (p.ea / p.f, p.eb / p.f) (b0 = 0 for the side faces: only directions with n . p >= 0).
+struct CubeFace {
+  Vec3 f, ea, eb;
+  double b0;
+};
+
+// The open directions from x (no patch in them) by exact clipping: every patch's polygon projected onto the
+// hemicube faces, united per face, the face minus the union mapped back to directions and integrated.
+Moments open_moments(const mesh::PatchGeometry& g, const Vec3& x, const Vec3& n, const Vec3& up,
+                     const std::vector<char>& skip) {
+  const Vec3 t1 = n.unitOrthogonal(), t2 = n.cross(t1);
+  const CubeFace faces[5] = {{n, t1, t2, -1}, {t1, t2, n, 0}, {-t1, t2, n, 0}, {t2, t1, n, 0}, {-t2, t1, n, 0}};
+  thread_local std::vector<Vec3> rel, a, b;
+  Moments open;
+  for (const CubeFace& F : faces) {
+    bp::polygon_set_data<int> covered;
+    std::vector<bp::point_data<int>> pts;
+    const Vec3 planes[4] = {F.f - F.ea, F.f + F.ea, F.f - F.eb, F.b0 < 0 ? Vec3(F.f + F.eb) : F.eb};
+    for (int j = 0; j < g.size(); ++j) {
+      if (skip[size_t(j)]) continue;
+      const auto poly = g.polygon(j);
+      rel.resize(poly.size());
+      for (size_t k = 0; k < poly.size(); ++k) rel[k] = poly[k] - x;
+      clip_plane(rel, F.f, a);
+      for (const Vec3& d : planes) {
+        if (a.empty()) break;
+        clip_plane(a, d, b);
+        std::swap(a, b);
+      }
+      if (a.size() < 3) continue;
+      pts.clear();
+      for (const Vec3& p : a) {
+        const double w = F.f.dot(p);
+        if (!(w > 0)) continue;  // the apex itself (x on the patch's boundary)
+        const double u = std::clamp(F.ea.dot(p) / w, -1.0, 1.0), v = std::clamp(F.eb.dot(p) / w, F.b0, 1.0);
+        pts.emplace_back(int(std::lround(u * kGridScale)), int(std::lround(v * kGridScale)));
+      }
+      if (pts.size() < 3) continue;
+      bp::polygon_data<int> pd;
+      pd.set(pts.begin(), pts.end());
+      covered.insert(pd);
+    }
+    using namespace bp::operators;
+    bp::polygon_set_data<int> sky;
+    sky.insert(bp::rectangle_data<int>(-int(kGridScale), int(F.b0 * kGridScale), int(kGridScale), int(kGridScale)));
+    sky -= covered;
+    std::vector<bp::polygon_data<int>> out;  // outer boundaries with holes keyholed in: signed areas add up
+    sky.get(out);
+    for (const auto& pd : out) {
+      rel.clear();
+      for (auto it = pd.begin(); it != pd.end(); ++it)
+        rel.push_back(x + F.f + (double(bp::x(*it)) / kGridScale) * F.ea + (double(bp::y(*it)) / kGridScale) * F.eb);
+      if (rel.size() >= 3) open += polygon_moments(x, n, up, rel);
+    }
+  }
+  return open;
 }
 
 }  // namespace
@@ -114,27 +198,43 @@ Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, 
   const Impl& I = *impl_;
   const mesh::PatchGeometry& g = I.g;
   Result r;
-  r.unobstructed = hemisphere_moments(n, up);
-  // Rays are needed when some patch can block a segment from x: x behind some patch's plane, or patches that
-  // can block segments between scene points.
+  // Occlusion is possible when some patch can block a segment from x: x behind some patch's plane, or patches
+  // that can block segments between scene points.
   bool rays = I.occluders;
   for (int k = 0; k < g.size() && !rays; ++k)
     if (k != ignore && g.normal[k].dot(x) - I.offset[size_t(k)] < -I.eps && !(ignore >= 0 && I.coplanar(k, ignore)))
       rays = true;
+  Moments covered;
+  thread_local std::vector<char> skip;
+  skip.assign(size_t(g.size()), 0);
   for (int j = 0; j < g.size(); ++j) {
-    if (j == ignore || (ignore >= 0 && I.coplanar(j, ignore))) continue;
+    if (j == ignore || (ignore >= 0 && I.coplanar(j, ignore))) {
+      skip[size_t(j)] = 1;
+      continue;
+    }
     const auto poly = g.polygon(j);
     const Moments m = polygon_moments(x, n, up, poly);
-    if (!(m.cos_above + m.cos_below > 0)) continue;
+    if (!(m.cos_above + m.cos_below > 0)) {
+      skip[size_t(j)] = 1;  // outside x's front hemisphere
+      continue;
+    }
+    const bool lit = radiance && g.normal[j].dot(x) - I.offset[size_t(j)] > 0;
+    if (rays && !lit) continue;  // only its coverage matters, and the clipping below takes it
     const double V = rays ? I.visible_fraction(x, n, j, ignore) : 1.0;
-    if (!(V > 0)) continue;
-    r.covered.cos_above += V * m.cos_above;
-    r.covered.cos_up_above += V * m.cos_up_above;
-    r.covered.cos_below += V * m.cos_below;
-    if (radiance && g.normal[j].dot(x) - I.offset[size_t(j)] > 0) {
+    if (!rays) covered += m;
+    if (lit && V > 0) {
       const double F = formfactor::point_to_polygon(x, n, poly);
       r.from_patches += (V * kPi * F) * radiance->row(j).transpose().array();
     }
+  }
+  if (rays) {
+    r.open = open_moments(g, x, n, up, skip);
+    r.clipped = true;
+  } else {
+    const Moments h = hemisphere_moments(n, up);
+    r.open.cos_above = h.cos_above - covered.cos_above;
+    r.open.cos_up_above = h.cos_up_above - covered.cos_up_above;
+    r.open.cos_below = h.cos_below - covered.cos_below;
   }
   return r;
 }
@@ -196,7 +296,7 @@ std::vector<double> glazing_outside_irradiance(const mesh::Scene& scene, const S
     double sum = 0, area = 0;
     for (const Sample& s : S) {
       const Gatherer::Result r = gather.gather(s.p, -g.normal[p], sky.up, nullptr, p);
-      sum += s.area * (irradiance(sky, r.unobstructed) - irradiance(sky, r.covered));
+      sum += s.area * irradiance(sky, r.open);
       area += s.area;
     }
     E[size_t(p)] = area > 0 ? sum / area : 0.0;
@@ -223,7 +323,7 @@ std::vector<SensorResult> evaluate_sensors(const std::vector<Sensor>& sensors, c
     const Gatherer::Result r = gather.gather(sensors[k].position, sensors[k].normal, up, &radiance, -1);
     SensorResult& s = out[k];
     s.from_patches = r.from_patches;
-    s.sky = sky ? irradiance(*sky, r.unobstructed) - irradiance(*sky, r.covered) : 0.0;
+    s.sky = sky ? irradiance(*sky, r.open) : 0.0;
     s.irradiance = s.from_patches + s.sky;
   });
   return out;

@@ -21,8 +21,12 @@ constexpr double kWeightR = 0.265, kWeightG = 0.670, kWeightB = 0.065;
 constexpr double kEfficacy = 179.0;  // lm W^-1
 inline double luminance_weighted(const RGB& c) { return kWeightR * c[0] + kWeightG * c[1] + kWeightB * c[2]; }
 
-// Point-to-patches gathering with visibility: the one place daylight traces rays (through formfactor's
-// Visibility, so Embree stays inside formfactor).
+// Point-to-patches gathering with visibility. The light from the patches uses the exact point-to-polygon kernel
+// times a visible fraction estimated with rays (formfactor's Visibility: Embree stays inside formfactor). The
+// open directions (what the sky term needs) are exact: when no patch can hide another from x, the hemisphere
+// minus the patches' moments; otherwise every patch is projected onto the faces of a hemicube around n, the
+// projections are united (Boost.Polygon, integer coordinates of 2^-28 of a face: a relative error ~1e-8), and
+// the moments of the uncovered region are integrated as polygons (docs/physics.md §9).
 class Gatherer {
  public:
   // rays: visibility samples per (point, patch) pair that may be occluded (>= 1).
@@ -30,8 +34,8 @@ class Gatherer {
   ~Gatherer();
   struct Result {
     RGB from_patches = RGB::Zero();  // pi sum_j V_j F(x -> P_j) L_j: light from the patches (needs radiance)
-    Moments covered;                 // sum_j V_j Moments(P_j): what the patches hide of sky and ground
-    Moments unobstructed;            // hemisphere_moments(n, up)
+    Moments open;                    // the moments of the directions in which x sees no patch (sky and ground)
+    bool clipped = false;            // open came from exact clipping (some patch could hide another)
   };
   // x, n (unit): the point and its normal; radiance: patches x 3 or empty (then from_patches = 0); ignore: a
   // patch the point lies on (its own plane's patches are ignored too), or -1.
