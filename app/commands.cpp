@@ -556,6 +556,11 @@ int run_solve(const CommonOptions& o) {
   timer.start("checks");
   const formfactor::RowSumCheck row_check = check_rows(o, scene, F, st);
 
+  ColorField Le = scene.emission_field();
+  if (day.sky_active()) {
+    timer.start("sky");
+    Le = day.emission(scene, F, o.quiet);  // rho E_sky / pi and tau E_outside / pi added to Le
+  }
   timer.start("solve");
   solver::Solution sol;
   {
@@ -564,14 +569,6 @@ int run_solve(const CommonOptions& o) {
       progress.note(fmt::format("channel {} iteration {} residual {:.2e}", channel, iteration, residual));
       progress.update(std::clamp(std::log10(std::max(residual, 1e-300)) / std::log10(so.tolerance), 0.0, 1.0));
     };
-    ColorField Le;
-    if (day.sky_active()) {
-      timer.start("sky");
-      Le = day.emission(scene, F, o.quiet);  // rho E_sky / pi and tau E_outside / pi added to Le
-      timer.start("solve");
-    } else {
-      Le = scene.emission_field();
-    }
     sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), Le, so);
     so.progress = nullptr;
   }

@@ -73,10 +73,10 @@ ColorField DaylightRun::emission(const mesh::Scene& scene, const formfactor::Den
   if (!has_sky_) return scene.emission_field();
   const auto t0 = std::chrono::steady_clock::now();
   if (!quiet) std::fprintf(stderr, "daylight: sky irradiance on %d patches\n", scene.patches());
-  patch_sky_ = daylight::patch_sky_irradiance(scene, sky_, F.matrix(), &patch_stats_);
+  if (!gatherer_) gatherer_ = std::make_unique<daylight::Gatherer>(scene.geometry, o_.sensor_rays);
+  patch_sky_ = daylight::patch_sky_irradiance(scene, sky_, F.matrix(), *gatherer_, &patch_stats_);
   outside_.assign(size_t(scene.patches()), 0.0);
   if (patch_stats_.glazing_patches > 0) {
-    if (!gatherer_) gatherer_ = std::make_unique<daylight::Gatherer>(scene.geometry, o_.sensor_rays);
     outside_ = daylight::glazing_outside_irradiance(scene, sky_, *gatherer_);
   }
   sky_seconds_ = seconds_since(t0);
@@ -192,8 +192,8 @@ std::string DaylightRun::summary() const {
                      sky_.ground_reflectance, o_.up, patch_stats_.patches_lit, patch_stats_.glazing_patches,
                      sky_seconds_);
     if (patch_stats_.negative_set_to_zero > 0)
-      s += fmt::format("  note         {} patches had a negative sky irradiance (form-factor row error; most negative "
-                       "{:.3g} {}) and were set to 0\n",
+      s += fmt::format("  note         {} patches had a negative sky irradiance from round-off (most negative {:.3g} {}), "
+                       "set to 0\n",
                        patch_stats_.negative_set_to_zero, patch_stats_.most_negative * scale(), lux);
   }
   if (!results_.empty()) {
@@ -232,7 +232,7 @@ nlohmann::json DaylightRun::stats() const {
                 {"ground_reflectance", sky_.ground_reflectance},
                 {"patches_lit", patch_stats_.patches_lit},
                 {"glazing_patches", patch_stats_.glazing_patches},
-                {"weighted_entries", patch_stats_.entries},
+                {"points_clipped", patch_stats_.points},
                 {"negative_set_to_zero", patch_stats_.negative_set_to_zero},
                 {"most_negative", patch_stats_.most_negative * scale()},
                 {"seconds", sky_seconds_}};

@@ -406,8 +406,10 @@ TEST_F(Daylight, SensorsHiddenFromTheWindowGetOnlyInterreflectedLight) {
   const char* sensors = "x,y,z,nx,ny,nz\n4,0.85,1,0,1,0\n3.5,0.85,0.5,0,1,0\n1,0.85,2,0,1,0\n";
   const auto black = solve("cie-overcast", 0, 0.2, false, true, sensors);
   ASSERT_EQ(black.size(), 3u);
-  EXPECT_NEAR(black[0].df, 0, 1e-9) << "hidden sensor, black room: no sky may reach it";
-  EXPECT_NEAR(black[1].df, 0, 1e-9) << "hidden sensor, black room: no sky may reach it";
+  // The clipping's integer grid (2^-28 of a hemicube face) and the union of coplanar patches (2^-28 of the scene)
+  // may leave cracks ~1e-9 of the scene wide: ~1e-7 % of daylight factor. 1e-6 % (the tolerance).
+  EXPECT_NEAR(black[0].df, 0, 1e-6) << "hidden sensor, black room: no sky may reach it";
+  EXPECT_NEAR(black[1].df, 0, 1e-6) << "hidden sensor, black room: no sky may reach it";
   EXPECT_GT(black[2].df, 1) << "the sensor before the partition sees the window";
   const auto grey = solve("cie-overcast", 0.5, 0.2, false, true, sensors);
   EXPECT_GT(grey[0].df, 0.05) << "hidden sensor, grey room: interreflected light";

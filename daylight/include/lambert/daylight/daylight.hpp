@@ -41,6 +41,10 @@ class Gatherer {
   // patch the point lies on (its own plane's patches are ignored too), or -1.
   Result gather(const Vec3& x, const Vec3& n, const Vec3& up, const ColorField* radiance, int ignore) const;
   long long rays_cast() const;
+  // The open directions' moments at x (exact clipping, as in gather()); likely_visible[j] != 0 marks patches x
+  // probably sees (e.g. F_ij > 0): a hint that speeds the clipping up, never changes the result.
+  Moments open(const Vec3& x, const Vec3& n, const Vec3& up, int ignore, const std::vector<char>& likely_visible) const;
+  const mesh::PatchGeometry& geometry() const;
 
  private:
   struct Impl;
@@ -48,20 +52,21 @@ class Gatherer {
 };
 
 struct PatchSkyStats {
-  long long entries = 0;        // nonzero F_ij weighted by the sky's direction distribution
-  int patches_lit = 0;          // patches with E_sky > 0
-  int negative_set_to_zero = 0; // patches whose E_sky came out < 0 (F row error), set to 0 (counted)
-  double most_negative = 0;     // the most negative value before that, W m^-2 (or lux)
+  int patches_lit = 0;          // patches with E_sky > 1e-6 E_h (below: cracks of the clipping's integer grid)
+  long long points = 0;         // points at which the open directions were clipped
+  int negative_set_to_zero = 0; // patches whose E_sky came out < 0 (round-off of the clipping), set to 0
+  double most_negative = 0;     // the most negative value before that (same unit as the sky's irradiance)
   int glazing_patches = 0;
   double seconds = 0;
 };
 
-// Direct sky (and ground) irradiance on each patch, averaged over the patch: E_sky,i = E_unobstructed(n_i) -
-// pi sum_j F_ij w_ij, w_ij the sky radiance averaged (cosine-weighted) over P_j's directions seen from i's
-// centroid (exact moments; = L for the uniform sky, so then E_sky,i = pi L (1 - sum_j F_ij) exactly).
-// F: the assembled (occluded) form factors of scene.geometry. Returns patches x 1 values.
+// Direct sky (and ground) irradiance on each patch, averaged over the patch (one point per triangle of its
+// triangulation): the sky and ground seen through the directions in which the point sees no patch (exact
+// clipping, Gatherer::open). F: the assembled form factors of scene.geometry (F_ij > 0 marks the patches i
+// likely sees). Returns one value per patch.
 std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky,
-                                         const formfactor::DenseMatrixOperator::Matrix& F, PatchSkyStats* stats);
+                                         const formfactor::DenseMatrixOperator::Matrix& F, const Gatherer& gather,
+                                         PatchSkyStats* stats);
 
 // Irradiance on the outside (back) of each glazing patch (transmittance > 0) from sky and ground, averaged over
 // the patch, occluded by the scene's patches (two-sided); 0 for other patches.
