@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <random>
 #include <sstream>
 #include <string>
@@ -414,6 +415,37 @@ TEST_F(Daylight, SensorsHiddenFromTheWindowGetOnlyInterreflectedLight) {
   const auto grey = solve("cie-overcast", 0.5, 0.2, false, true, sensors);
   EXPECT_GT(grey[0].df, 0.05) << "hidden sensor, grey room: interreflected light";
   EXPECT_GT(grey[2].df, black[2].df) << "interreflection adds to the sky component";
+}
+
+// The work-plane grid over the furnished window room (examples/window_room_daylight.obj): every node at the
+// work plane, none closer than the inset to a wall, nodes above the table (its top is below the work plane),
+// none on the table top as a floor; the CSV, the .vtu of points and --stats agree on the count.
+TEST_F(Daylight, WorkPlaneGridCoversFloorsInsetFromWalls) {
+  const std::string ex = std::string(LAMBERT_SOURCE_DIR) + "/examples/window_room_daylight.obj";
+  const auto r = run_solve(ex + " -o " + path("w.vtu") + " --sky cie-overcast --units photometric --work-plane 0.85 "
+                           "--grid 0.25 --sensors-out " + path("grid.csv") + " --stats " + path("s.json") + " --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto rows = read_rows(path("grid.csv"));
+  ASSERT_GT(rows.size(), 100u);
+  int over_table = 0;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    const Vec3& x = rows[k].x;
+    EXPECT_NEAR(x.y(), 0.85, 1e-12) << "sensor " << k;
+    EXPECT_TRUE(x.x() >= 0.5 - 1e-9 && x.x() <= 4.5 + 1e-9 && x.z() >= 0.5 - 1e-9 && x.z() <= 3.5 + 1e-9)
+        << "sensor " << k << " at " << x.transpose() << " is within 0.5 m of a wall";
+    // The inset is tested with 16 horizontal rays 22.5 deg apart: a box corner between two of them may come as close
+    // as 0.5 cos(22.5 deg) = 0.462 m.
+    const double dx = std::max(4.4 - x.x(), 0.0), dz = std::max(2.6 - x.z(), 0.0);
+    EXPECT_GE(std::hypot(dx, dz), 0.46) << "sensor " << k << " at " << x.transpose() << " too close to the cupboard";
+    if (x.x() > 1.6 && x.x() < 3.0 && x.z() > 1.4 && x.z() < 2.6) ++over_table;
+    EXPECT_GT(rows[k].df, 0) << "sensor " << k;
+  }
+  EXPECT_GT(over_table, 4) << "the work plane continues over the table";
+  std::ifstream js(path("s.json"));
+  const std::string stats((std::istreambuf_iterator<char>(js)), std::istreambuf_iterator<char>());
+  EXPECT_NE(stats.find("\"count\": " + std::to_string(rows.size())), std::string::npos) << stats.substr(0, 2000);
+  EXPECT_NE(stats.find("\"kind\": \"cie-overcast\""), std::string::npos);
+  EXPECT_TRUE(fs::exists(path("grid.vtu")));
 }
 
 // Bad sensor files: exit 1, the message names the file and line.

@@ -145,10 +145,12 @@ std::vector<Sensor> work_plane_grid(const mesh::PatchGeometry& g, const Vec3& up
         const Vec3 h = u * e1 + v * e2;
         const Vec3 foot = h + ((d - n.dot(h)) / n.dot(up)) * up;
         const Vec3 w = foot + o.height * up;
-        if (vis->occluded(foot + eps * up, w, p, p)) continue;  // something (a ceiling, a table top) in the way
+        // Between the floor and the work plane only up-facing surfaces with their undersides (table tops, shelves)
+        // may lie: a hit that is not one of those (a ceiling lower than the work plane) drops the node.
+        if (vis->occluded(foot + eps * up, w, p, p) && !up_vis->occluded(foot + eps * up, w, p, p)) continue;
         bool clear = true;
-        for (int a = 0; a < 8 && clear && o.inset > 0; ++a) {
-          const double phi = a * 3.14159265358979323846 / 4;
+        for (int a = 0; a < 16 && clear && o.inset > 0; ++a) {
+          const double phi = a * 3.14159265358979323846 / 8;
           const Vec3 dir = std::cos(phi) * e1 + std::sin(phi) * e2;
           clear = !vis->occluded(w, w + o.inset * dir, -1, -1);
         }

@@ -92,9 +92,10 @@ std::vector<Sensor> read_sensors_csv(const std::string& path);
 // up. Floors are patches facing up (normal within 1 degree of up) with no other up-facing surface within
 // 1.5 m below them (so table tops, beds and shelves are not floors, a rug on the floor is). Grid nodes lie on the
 // lattice origin + spacing (i + 1/2, j + 1/2) over the floors' bounding box; a node is kept when its foot lies
-// on a floor patch, the vertical segment from the foot to the work plane is unobstructed, and nothing lies
-// within `inset` (m) of it horizontally (8 rays: walls, and furniture reaching the work plane). Order: floor
-// patches in scene order, then lattice rows.
+// on a floor patch, nothing but up-facing surfaces (a table top) lies between the foot and the work plane (a
+// ceiling lower than the work plane drops it), and nothing lies within `inset` (m) of it horizontally (16 rays
+// at the work plane's height: walls, and furniture reaching it). Order: floor patches in scene order, then
+// lattice rows.
 struct WorkPlaneOptions {
   double height = 0.85, spacing = 0.5, inset = 0.5;
 };
