@@ -175,10 +175,14 @@ constexpr double kWz0 = 1.2, kWz1 = 2.8, kWy0 = 0.9, kWy1 = 2.3;
 struct Obj {
   std::string v, f;
   int count = 0;
+  Vec3 shift = Vec3::Zero();
   void quad(const std::vector<Vec3>& c, const std::string& mtl) {
     f += "usemtl " + mtl + "\nf";
-    for (const Vec3& p : c) {
-      v += "v " + std::to_string(p.x()) + " " + std::to_string(p.y()) + " " + std::to_string(p.z()) + "\n";
+    for (const Vec3& q : c) {
+      const Vec3 p = q + shift;
+      char buf[128];
+      std::snprintf(buf, sizeof buf, "v %.17g %.17g %.17g\n", p.x(), p.y(), p.z());
+      v += buf;
       f += " " + std::to_string(++count);
     }
     f += "\n";
@@ -199,8 +203,9 @@ struct Obj {
   }
 };
 
-std::string room_obj(bool glass, bool partition) {
+std::string room_obj(bool glass, bool partition, const Vec3& shift = Vec3::Zero()) {
   Obj o;
+  o.shift = shift;
   const double X = 5, Y = 3, Z = 4;
   o.rect(1, 0, 0, Z, 0, X, 1, "wall");   // floor (axis y: a = z, b = x)
   o.rect(1, Y, 0, Z, 0, X, -1, "wall");  // ceiling
@@ -246,14 +251,15 @@ std::vector<SensorRow> read_rows(const std::string& path, std::string* header = 
 struct Daylight : test::Cli {
   // Solves the room under `sky` and returns the sensor rows.
   std::vector<SensorRow> solve(const std::string& sky, double rho, double ground, bool glass, bool partition,
-                               const std::string& sensors, double tau = 0.6) {
+                               const std::string& sensors, double tau = 0.6, const Vec3& shift = Vec3::Zero(),
+                               const std::string& extra = "") {
     write("room.mtl", "newmtl wall\nKd " + std::to_string(rho) + "\nnewmtl glass\nKd 0\ntransmittance " +
                           std::to_string(tau) + "\n");
-    const std::string obj = write("room.obj", room_obj(glass, partition));
+    const std::string obj = write("room.obj", room_obj(glass, partition, shift));
     const std::string in = write("sensors.csv", sensors);
     const auto r = test::run("solve " + obj + " -o " + path("room.vtu") + " --sky " + sky + " --ground-reflectance " +
                              std::to_string(ground) + " --sensors " + in + " --sensors-out " + path("out.csv") +
-                             " --sensor-rays 64 --quiet");
+                             " --sensor-rays 64 --quiet " + extra);
     EXPECT_EQ(r.status, 0) << r.output;
     std::string header;
     auto rows = read_rows(path("out.csv"), &header);
@@ -446,6 +452,64 @@ TEST_F(Daylight, WorkPlaneGridCoversFloorsInsetFromWalls) {
   EXPECT_NE(stats.find("\"count\": " + std::to_string(rows.size())), std::string::npos) << stats.substr(0, 2000);
   EXPECT_NE(stats.find("\"kind\": \"cie-overcast\""), std::string::npos);
   EXPECT_TRUE(fs::exists(path("grid.vtu")));
+  // The room's .vtu gains the photometric and sky arrays (names in the XML header of the appended format).
+  std::ifstream vtu(path("w.vtu"));
+  const std::string head((std::istreambuf_iterator<char>(vtu)), std::istreambuf_iterator<char>());
+  for (const char* name : {"Name=\"luminance\"", "Name=\"illuminance\"", "Name=\"sky_irradiance\"",
+                           "Name=\"outside_irradiance\""})
+    EXPECT_NE(head.find(name), std::string::npos) << name;
+}
+
+// The same room and sensors 1e6 m from the origin (georeferenced coordinates), and on 1 thread instead of all:
+// the daylight factors agree (1e-6 %: the clipping's integer grid is relative to the scene and to each hemicube,
+// so it moves with the model), and the thread count changes nothing (each sensor is computed alone: identical).
+TEST_F(Daylight, ResultsIndependentOfPositionAndThreads) {
+  const char* sensors = "4,0.85,1,0,1,0\n1,0.85,2,0,1,0\n2,1.2,3,-1,0,0\n";
+  const auto here = solve("cie-overcast", 0.5, 0.2, false, true, sensors);
+  const auto one = solve("cie-overcast", 0.5, 0.2, false, true, sensors, 0.6, Vec3::Zero(), "--threads 1");
+  const Vec3 shift(1e6, 0, -1e6);
+  std::string moved;
+  for (const char* line : {"1000004,0.85,-999999,0,1,0\n", "1000001,0.85,-999998,0,1,0\n", "1000002,1.2,-999997,-1,0,0\n"})
+    moved += line;
+  const auto far = solve("cie-overcast", 0.5, 0.2, false, true, moved, 0.6, shift);
+  ASSERT_EQ(here.size(), 3u);
+  ASSERT_EQ(far.size(), 3u);
+  ASSERT_EQ(one.size(), 3u);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_NEAR(far[k].df, here[k].df, 1e-6) << "sensor " << k << " shifted by 1e6 m";
+    EXPECT_EQ(one[k].df, here[k].df) << "sensor " << k << ": 1 thread against all";
+  }
+}
+
+// Bad daylight options: exit 1 with a message naming the option, before any work.
+TEST_F(Daylight, BadDaylightOptionsExitOne) {
+  write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0\n");
+  const std::string obj = write("room.obj", room_obj(false, false));
+  const std::string out = " -o " + path("r.vtu");
+  struct Case {
+    std::string args, expect;
+  };
+  for (const Case& c : {Case{"--sky sunny", "--sky sunny: unknown sky"}, Case{"--sky cie-clear:3", "not implemented"},
+                        Case{"--sky uniform:-2", "not a finite number > 0"}, Case{"--sky uniform:nan", "not a finite"},
+                        Case{"--up w", "--up w: expected one of"}, Case{"--grid 0.5", "--grid needs --work-plane"},
+                        Case{"--work-plane 0.8", "--work-plane needs --grid"},
+                        Case{"--sensors-out " + path("o.csv"), "--sensors-out needs sensors"},
+                        Case{"--sky uniform --ground-reflectance 1.5", "--ground-reflectance"},
+                        Case{"--units lumens", "--units"}}) {
+    const auto r = run_solve(obj + out + " " + c.args);
+    EXPECT_EQ(r.status, 1) << c.args << ": " << r.output;
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.args << ": expected '" << c.expect << "' in " << r.output;
+  }
+  // Glazing values out of range are named with the MTL line.
+  write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0.5\ntransmittance 0.7\n");
+  const std::string glazed = write("room.obj", room_obj(true, false));
+  const auto r = run_solve(glazed + out + " --sky uniform");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("reflectance + transmittance"), std::string::npos) << r.output;
+  write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0\ntransmittance 1.5\n");
+  const auto r2 = run_solve(glazed + out + " --sky uniform");
+  EXPECT_EQ(r2.status, 1) << r2.output;
+  EXPECT_NE(r2.output.find("room.mtl:5"), std::string::npos) << r2.output;
 }
 
 // Bad sensor files: exit 1, the message names the file and line.
