@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "outputs.hpp"
+#include "progress.hpp"
 
 namespace lambert::app {
 namespace {
@@ -72,9 +73,12 @@ double DaylightRun::value(const RGB& e) const { return scale() * daylight::lumin
 ColorField DaylightRun::emission(const mesh::Scene& scene, const formfactor::DenseMatrixOperator& F, bool quiet) {
   if (!has_sky_) return scene.emission_field();
   const auto t0 = std::chrono::steady_clock::now();
-  if (!quiet) std::fprintf(stderr, "daylight: sky irradiance on %d patches\n", scene.patches());
   if (!gatherer_) gatherer_ = std::make_unique<daylight::Gatherer>(scene.geometry, o_.sensor_rays);
-  patch_sky_ = daylight::patch_sky_irradiance(scene, sky_, F.matrix(), *gatherer_, &patch_stats_);
+  {
+    Progress progress("sky", !quiet);
+    patch_sky_ = daylight::patch_sky_irradiance(scene, sky_, F.matrix(), *gatherer_, &patch_stats_,
+                                                [&](double f) { progress.update(f); });
+  }
   outside_.assign(size_t(scene.patches()), 0.0);
   if (patch_stats_.glazing_patches > 0) {
     outside_ = daylight::glazing_outside_irradiance(scene, sky_, *gatherer_);
@@ -97,10 +101,13 @@ void DaylightRun::sensors(const mesh::Scene& scene, const ColorField& radiance, 
     sensors_ = daylight::work_plane_grid(scene.geometry, up_, w);
     sensor_source_ = fmt::format("work plane {} m, grid {} m, inset {} m", w.height, w.spacing, w.inset);
   }
-  if (!quiet) std::fprintf(stderr, "daylight: irradiance at %zu sensors\n", sensors_.size());
   if (!gatherer_) gatherer_ = std::make_unique<daylight::Gatherer>(scene.geometry, o_.sensor_rays);
   const long long before = gatherer_->rays_cast();
-  results_ = daylight::evaluate_sensors(sensors_, *gatherer_, radiance, has_sky_ ? &sky_ : nullptr, up_);
+  {
+    Progress progress("sensors", !quiet);
+    results_ = daylight::evaluate_sensors(sensors_, *gatherer_, radiance, has_sky_ ? &sky_ : nullptr, up_,
+                                          [&](double f) { progress.update(f); });
+  }
   sensor_rays_ = gatherer_->rays_cast() - before;
   sensor_seconds_ = seconds_since(t0);
 }

@@ -357,7 +357,7 @@ const mesh::PatchGeometry& Gatherer::geometry() const { return impl_->g; }
 
 std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky,
                                          const formfactor::DenseMatrixOperator::Matrix& F, const Gatherer& gather,
-                                         PatchSkyStats* stats) {
+                                         PatchSkyStats* stats, const std::function<void(double)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   const mesh::PatchGeometry& g = scene.geometry;
   const int N = g.size();
@@ -369,7 +369,8 @@ std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sk
     for (int i = range.begin(); i < range.end(); ++i) {
       for (int j = 0; j < N; ++j) likely[size_t(j)] = F(i, j) > 0;
       E[size_t(i)] = irradiance(sky, gather.open(g.centroid[i], g.normal[i], sky.up, i, likely));
-      ++points;
+      const long long done = ++points;
+      if (progress) progress(double(done) / double(N));
     }
   });
   PatchSkyStats st;
@@ -423,14 +424,18 @@ ColorField daylight_emission(const mesh::Scene& scene, const std::vector<double>
 }
 
 std::vector<SensorResult> evaluate_sensors(const std::vector<Sensor>& sensors, const Gatherer& gather,
-                                           const ColorField& radiance, const Sky* sky, const Vec3& up) {
+                                           const ColorField& radiance, const Sky* sky, const Vec3& up,
+                                           const std::function<void(double)>& progress) {
   std::vector<SensorResult> out(sensors.size());
+  std::atomic<size_t> done{0};
   tbb::parallel_for(size_t(0), sensors.size(), [&](size_t k) {
     const Gatherer::Result r = gather.gather(sensors[k].position, sensors[k].normal, up, &radiance, -1);
     SensorResult& s = out[k];
     s.from_patches = r.from_patches;
     s.sky = sky ? irradiance(*sky, r.open) : 0.0;
     s.irradiance = s.from_patches + s.sky;
+    const size_t d = ++done;
+    if (progress) progress(double(d) / double(sensors.size()));
   });
   return out;
 }

@@ -4,6 +4,7 @@
 // Units: as the sky's (W m^-2 sr^-1 -> W m^-2; cd m^-2 -> lux). Colour: RGB per patch / sensor; the sky is grey.
 // Method and its limits: docs/physics.md §9.
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -66,7 +67,8 @@ struct PatchSkyStats {
 // likely sees). Returns one value per patch.
 std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky,
                                          const formfactor::DenseMatrixOperator::Matrix& F, const Gatherer& gather,
-                                         PatchSkyStats* stats);
+                                         PatchSkyStats* stats,
+                                         const std::function<void(double fraction_done)>& progress = {});
 
 // Irradiance on the outside (back) of each glazing patch (transmittance > 0) from sky and ground, averaged over
 // the patch, occluded by the scene's patches (two-sided); 0 for other patches.
@@ -108,7 +110,9 @@ struct SensorResult {
 };
 // Irradiance at each sensor: from every patch (exact kernel, visibility by rays) with the solved radiance, plus
 // the sky (sky may be null: no daylight).
+// progress: called with the fraction done from any thread (the callee must be thread-safe).
 std::vector<SensorResult> evaluate_sensors(const std::vector<Sensor>& sensors, const Gatherer& gather,
-                                           const ColorField& radiance, const Sky* sky, const Vec3& up);
+                                           const ColorField& radiance, const Sky* sky, const Vec3& up,
+                                           const std::function<void(double fraction_done)>& progress = {});
 
 }  // namespace lambert::daylight
