@@ -76,7 +76,11 @@ ColorField DaylightRun::emission(const mesh::Scene& scene, const formfactor::Den
   if (!gatherer_) gatherer_ = std::make_unique<daylight::Gatherer>(scene.geometry, o_.sensor_rays);
   {
     Progress progress("sky", !quiet);
-    patch_sky_ = daylight::patch_sky_irradiance(scene, sky_, F.matrix(), *gatherer_, &patch_stats_,
+    const auto& M = F.matrix();
+    const daylight::VisibilityHint seen = [&M](int i, std::vector<char>& flags) {
+      for (Eigen::Index j = 0; j < M.cols(); ++j) flags[size_t(j)] = M(i, j) > 0;  // F_ij > 0: i sees j
+    };
+    patch_sky_ = daylight::patch_sky_irradiance(scene, sky_, *gatherer_, &patch_stats_, seen,
                                                 [&](double f) { progress.update(f); });
   }
   outside_.assign(size_t(scene.patches()), 0.0);

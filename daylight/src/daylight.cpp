@@ -355,19 +355,19 @@ Moments Gatherer::open(const Vec3& x, const Vec3& n, const Vec3& up, int ignore,
 
 const mesh::PatchGeometry& Gatherer::geometry() const { return impl_->g; }
 
-std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky,
-                                         const formfactor::DenseMatrixOperator::Matrix& F, const Gatherer& gather,
-                                         PatchSkyStats* stats, const std::function<void(double)>& progress) {
+std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather,
+                                         PatchSkyStats* stats, const VisibilityHint& likely_visible,
+                                         const std::function<void(double)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   const mesh::PatchGeometry& g = scene.geometry;
   const int N = g.size();
-  LAMBERT_CHECK(F.rows() == N && F.cols() == N, "patch_sky_irradiance: F does not match the scene");
+  LAMBERT_CHECK(&gather.geometry() == &g, "patch_sky_irradiance: the Gatherer is not over this scene's geometry");
   std::vector<double> E(size_t(N), 0.0);
   std::atomic<long long> points{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, N, 1), [&](const tbb::blocked_range<int>& range) {
-    std::vector<char> likely(static_cast<size_t>(N));
+    std::vector<char> likely(static_cast<size_t>(N), 0);
     for (int i = range.begin(); i < range.end(); ++i) {
-      for (int j = 0; j < N; ++j) likely[size_t(j)] = F(i, j) > 0;
+      if (likely_visible) likely_visible(i, likely);
       E[size_t(i)] = irradiance(sky, gather.open(g.centroid[i], g.normal[i], sky.up, i, likely));
       const long long done = ++points;
       if (progress) progress(double(done) / double(N));

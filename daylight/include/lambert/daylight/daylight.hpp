@@ -31,6 +31,7 @@ inline double luminance_weighted(const RGB& c) { return kWeightR * c[0] + kWeigh
 class Gatherer {
  public:
   // rays: visibility samples per (point, patch) pair that may be occluded (>= 1).
+  // The geometry must outlive the Gatherer (it is referenced, not copied).
   Gatherer(const mesh::PatchGeometry& geometry, int rays);
   ~Gatherer();
   struct Result {
@@ -61,13 +62,13 @@ struct PatchSkyStats {
   double seconds = 0;
 };
 
-// Direct sky (and ground) irradiance on each patch, averaged over the patch (one point per triangle of its
-// triangulation): the sky and ground seen through the directions in which the point sees no patch (exact
-// clipping, Gatherer::open). F: the assembled form factors of scene.geometry (F_ij > 0 marks the patches i
-// likely sees). Returns one value per patch.
-std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky,
-                                         const formfactor::DenseMatrixOperator::Matrix& F, const Gatherer& gather,
-                                         PatchSkyStats* stats,
+// Direct sky (and ground) irradiance on each patch, at its centroid: the sky and ground seen through the
+// directions in which the centroid sees no patch (exact clipping, Gatherer::open). likely_visible(i, flags), if
+// given, sets flags[j] != 0 for the patches i probably sees (e.g. F_ij > 0 of an assembled operator): a hint that
+// makes the clipping ~4x faster on room scenes and never changes the result. Returns one value per patch.
+using VisibilityHint = std::function<void(int i, std::vector<char>& likely_visible)>;
+std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather,
+                                         PatchSkyStats* stats, const VisibilityHint& likely_visible = {},
                                          const std::function<void(double fraction_done)>& progress = {});
 
 // Irradiance on the outside (back) of each glazing patch (transmittance > 0) from sky and ground, averaged over
