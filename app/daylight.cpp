@@ -103,6 +103,13 @@ void DaylightRun::sensors(const mesh::Scene& scene, const ColorField& radiance, 
     w.spacing = o_.grid;
     w.inset = o_.grid_inset;
     sensors_ = daylight::work_plane_grid(scene.geometry, up_, w);
+    // Rooms: the floor's group name up to its first '/' ("living/floor_2" -> "living"), the OBJ convention of
+    // ROOM/OBJECT names; floors without a group form one room "(no group)".
+    for (const daylight::Sensor& s : sensors_) {
+      const int g = s.floor >= 0 && s.floor < int(scene.group.size()) ? scene.group[size_t(s.floor)] : -1;
+      const std::string name = g >= 0 ? scene.groups[size_t(g)] : "(no group)";
+      sensor_room_.push_back(name.substr(0, name.find('/')));
+    }
     sensor_source_ = fmt::format("work plane {} m, grid {} m, inset {} m", w.height, w.spacing, w.inset);
   }
   if (!gatherer_) gatherer_ = std::make_unique<daylight::Gatherer>(scene.geometry, o_.sensor_rays);
@@ -190,7 +197,25 @@ Figures figures(const std::vector<double>& v) {
   f.mean = s / double(v.size());
   return f;
 }
+struct Room {
+  std::string name;
+  std::vector<double> E, df;
+};
+
 }  // namespace
+
+// Work-plane figures per room (first-appearance order); empty unless the sensors come from a work plane.
+static std::vector<Room> rooms(const std::vector<std::string>& room_of, const std::vector<double>& E,
+                               const std::vector<double>& df) {
+  std::vector<Room> out;
+  for (size_t k = 0; k < room_of.size() && k < E.size(); ++k) {
+    auto it = std::find_if(out.begin(), out.end(), [&](const Room& r) { return r.name == room_of[k]; });
+    if (it == out.end()) it = out.insert(out.end(), Room{room_of[k], {}, {}});
+    it->E.push_back(E[k]);
+    if (k < df.size()) it->df.push_back(df[k]);
+  }
+  return out;
+}
 
 std::string DaylightRun::summary() const {
   std::string s;
@@ -223,6 +248,18 @@ std::string DaylightRun::summary() const {
       s += fmt::format("  daylight factor  mean {:.3g} %, min {:.3g} %, max {:.3g} %, uniformity {:.3g}\n", d.mean,
                        d.min, d.max, d.mean > 0 ? d.min / d.mean : 0.0);
     }
+    const auto per_room = rooms(sensor_room_, E, df);
+    if (per_room.size() > 1)
+      for (const Room& r : per_room) {
+        const Figures e = figures(r.E);
+        s += fmt::format("    {:<14} {:>5} sensors: mean {:.4g} {}, min {:.4g}, uniformity {:.3g}", r.name, r.E.size(),
+                         e.mean, lux, e.min, e.mean > 0 ? e.min / e.mean : 0.0);
+        if (!r.df.empty()) {
+          const Figures d = figures(r.df);
+          s += fmt::format("; daylight factor mean {:.3g} %, min {:.3g} %", d.mean, d.min);
+        }
+        s += '\n';
+      }
     if (!o_.sensors_out.empty())
       s += fmt::format("  sensors out  {} and {}\n", o_.sensors_out, sensors_vtu_path(o_.sensors_out));
   }
@@ -266,6 +303,19 @@ nlohmann::json DaylightRun::stats() const {
       s["daylight_factor_max"] = d.max;
     }
     if (!o_.sensors_out.empty()) s["output"] = {o_.sensors_out, sensors_vtu_path(o_.sensors_out)};
+    json by_room = json::array();
+    for (const Room& r : rooms(sensor_room_, E, df)) {
+      const Figures e = figures(r.E);
+      json jr = {{"room", r.name}, {"count", r.E.size()}, {"illuminance_mean", e.mean}, {"illuminance_min", e.min},
+                 {"uniformity", e.mean > 0 ? e.min / e.mean : 0.0}};
+      if (!r.df.empty()) {
+        const Figures d = figures(r.df);
+        jr["daylight_factor_mean"] = d.mean;
+        jr["daylight_factor_min"] = d.min;
+      }
+      by_room.push_back(jr);
+    }
+    if (!by_room.empty()) s["rooms"] = by_room;
     j["sensors"] = s;
   }
   return j;

@@ -49,6 +49,7 @@ class DaylightRun {
   double sensor_seconds_ = 0, sky_seconds_ = 0;
   long long sensor_rays_ = 0;
   std::string sensor_source_;
+  std::vector<std::string> sensor_room_;  // work plane: the room of each node (its floor's group up to '/')
   double scale() const;             // output unit per internal W: 179 (photometric) or 1
   double value(const RGB& e) const;  // Y-weighted, in output units
 };

@@ -155,7 +155,7 @@ std::vector<Sensor> work_plane_grid(const mesh::PatchGeometry& g, const Vec3& up
           clear = !vis->occluded(w, w + o.inset * dir, -1, -1);
         }
         if (!clear) continue;
-        out.push_back({w, up});
+        out.push_back({w, up, p});
       }
   }
   if (out.empty())

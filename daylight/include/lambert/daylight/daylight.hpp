@@ -83,6 +83,7 @@ ColorField daylight_emission(const mesh::Scene& scene, const std::vector<double>
 struct Sensor {
   Vec3 position = Vec3::Zero();
   Vec3 normal = Vec3::UnitY();  // unit
+  int floor = -1;               // work-plane nodes: the floor patch under the node; -1 for sensors from a file
 };
 
 // CSV with columns x,y,z,nx,ny,nz (metres; the normal need not be unit, is normalised), one sensor per line, an
