@@ -16,6 +16,12 @@
 #include <cstdio>
 #include <filesystem>
 
+#include <vtkCellData.h>
+#include <vtkDataArray.h>
+#include <vtkNew.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkXMLUnstructuredGridReader.h>
+
 #include "cli_util.hpp"
 #include "lambert/daylight/sky.hpp"
 #include "lambert/formfactor/kernel.hpp"
@@ -494,6 +500,43 @@ TEST_F(Daylight, UpAxisFollowsTheModel) {
   ASSERT_EQ(z_up.size(), 3u);
   for (size_t k = 0; k < 3; ++k) EXPECT_NEAR(z_up[k].df, y_up[k].df, 1e-6) << "sensor " << k;
   EXPECT_GT(y_up[1].df, 1);
+}
+
+// The sky on the patches (the emission term of the solve) is exact too: in the room with an opening, under a
+// uniform sky with ground of the same radiance, the floor's and the ceiling's sky irradiance (at their centroids)
+// is pi L F(centroid -> window), read back from the .vtu's sky_irradiance; the walls beside the window see no sky
+// (the opening is in their plane). 1e-7 relative: the clipping's integer grid (~1e-8).
+TEST_F(Daylight, PatchSkyIrradianceIsExactAtCentroids) {
+  solve("uniform:2", 0.5, 1, false, false, "1,1,1,0,1,0\n");
+  vtkNew<vtkXMLUnstructuredGridReader> reader;
+  reader->SetFileName(path("room.vtu").c_str());
+  reader->Update();
+  vtkUnstructuredGrid* grid = reader->GetOutput();
+  vtkDataArray* sky = grid->GetCellData()->GetArray("sky_irradiance");
+  vtkDataArray* face = grid->GetCellData()->GetArray("face_id");
+  ASSERT_NE(sky, nullptr);
+  ASSERT_NE(face, nullptr);
+  const std::vector<Vec3> window = window_parts(-1)[0];
+  struct Expect {
+    int face;
+    Vec3 c, n;
+  };
+  int seen = 0;
+  for (vtkIdType c = 0; c < grid->GetNumberOfCells(); ++c) {
+    const int f = int(face->GetTuple1(c));
+    const double E = sky->GetTuple1(c);
+    for (const Expect& e : {Expect{0, Vec3(2.5, 0, 2), Vec3(0, 1, 0)}, Expect{1, Vec3(2.5, 3, 2), Vec3(0, -1, 0)}}) {
+      if (f != e.face) continue;
+      const double ref = kPi * 2 * formfactor::point_to_polygon(e.c, e.n, window);
+      EXPECT_NEAR(E, ref, 1e-7 * ref) << "face " << f;
+      EXPECT_GT(ref, 0.01);
+      ++seen;
+    }
+    if (f >= 5) {
+      EXPECT_NEAR(E, 0, 1e-9) << "wall piece (face " << f << ") beside the window";
+    }
+  }
+  EXPECT_EQ(seen, 2);
 }
 
 // Bad daylight options: exit 1 with a message naming the option, before any work.
