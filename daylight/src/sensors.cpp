@@ -98,11 +98,36 @@ std::vector<Sensor> work_plane_grid(const mesh::PatchGeometry& g, const Vec3& up
   const double eps = 1e-7 * box.diagonal().norm();
   const auto up_vis = formfactor::make_embree_visibility(g, upward);
   const auto vis = formfactor::make_embree_visibility(g);
-  // Floors: up-facing patches with no other up-facing surface within 1.5 m below their centroid.
-  std::vector<int> floors;
+  // Floors: up-facing patches with no other up-facing surface 0.01 .. 2.5 m lower within 2 m horizontally (the
+  // floor is the lowest up-facing surface around; furniture tops up to 2.5 m stand on one; the next storey's
+  // floor is farther below). Compared by horizontal bounding boxes.
+  struct Flat {
+    double h, a1, b1, a2, b2;
+  };
+  std::vector<Flat> flats;
   for (int p : upward) {
-    const Vec3 c = g.centroid[p];
-    if (!up_vis->occluded(c - eps * up, c - 1.5 * up, p, p)) floors.push_back(p);
+    Flat f{up.dot(g.centroid[p]), INFINITY, -INFINITY, INFINITY, -INFINITY};
+    for (const Vec3& v : g.polygon(p)) {
+      f.a1 = std::min(f.a1, v.dot(e1));
+      f.b1 = std::max(f.b1, v.dot(e1));
+      f.a2 = std::min(f.a2, v.dot(e2));
+      f.b2 = std::max(f.b2, v.dot(e2));
+    }
+    flats.push_back(f);
+  }
+  std::vector<int> floors;
+  for (size_t k = 0; k < upward.size(); ++k) {
+    const Flat& f = flats[k];
+    bool lowest = true;
+    for (size_t q = 0; q < upward.size() && lowest; ++q) {
+      const Flat& other = flats[q];
+      const double dh = f.h - other.h;
+      if (dh < 0.01 || dh > 2.5) continue;
+      const double gap1 = std::max({0.0, other.a1 - f.b1, f.a1 - other.b1});
+      const double gap2 = std::max({0.0, other.a2 - f.b2, f.a2 - other.b2});
+      if (gap1 * gap1 + gap2 * gap2 <= 4.0) lowest = false;
+    }
+    if (lowest) floors.push_back(upward[k]);
   }
   double lo1 = INFINITY, lo2 = INFINITY;
   for (int p : floors)
@@ -160,7 +185,7 @@ std::vector<Sensor> work_plane_grid(const mesh::PatchGeometry& g, const Vec3& up
   }
   if (out.empty())
     throw InputError(fmt::format("--work-plane {} --grid {}: no grid node lies over a floor with {} m of clearance from "
-                                 "walls; try a smaller --grid",
+                                 "walls; try a smaller --grid or --grid-inset",
                                  o.height, s, o.inset));
   return out;
 }

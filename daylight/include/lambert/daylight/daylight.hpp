@@ -93,8 +93,9 @@ struct Sensor {
 std::vector<Sensor> read_sensors_csv(const std::string& path);
 
 // Work-plane grid (docs/physics.md §9): a square grid of `spacing` (m) at `height` (m) above the floors, normal
-// up. Floors are patches facing up (normal within 1 degree of up) with no other up-facing surface within
-// 1.5 m below them (so table tops, beds and shelves are not floors, a rug on the floor is). Grid nodes lie on the
+// up. Floors are patches facing up (normal within 1 degree of up) with no other up-facing surface 0.01 to 2.5 m
+// lower within 2 m horizontally (so table tops, beds, cupboards and shelves are not floors, a rug on the floor
+// is, and so is the floor of a storey above another; a floor step of more than 1 cm is not). Grid nodes lie on the
 // lattice origin + spacing (i + 1/2, j + 1/2) over the floors' bounding box; a node is kept when its foot lies
 // on a floor patch, nothing but up-facing surfaces (a table top) lies between the foot and the work plane (a
 // ceiling lower than the work plane drops it), and nothing lies within `inset` (m) of it horizontally (16 rays
