@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Daylight timings (docs/benchmarks.md, "Daylight"): the floor plan with its windows opened to the sky and ~540
+# Daylight timings (docs/benchmarks.md, "Daylight"): the floor plan with its windows opened to the sky and ~530
 # work-plane sensors, and the glazed window room at several refinements. Usage: bash bench/daylight.sh [BUILD]
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -8,7 +8,7 @@ out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
 echo "nproc $(nproc); $(grep -m1 'model name' /proc/cpuinfo)"
 /usr/bin/time -f "wall %e s, user %U s, max RSS %M kB" "$build/lambert" solve "$here/examples/floorplan_daylight.obj" \
-  -o "$out/fp.vtu" --sky cie-overcast --units photometric --work-plane 0.85 --grid 0.29 \
+  -o "$out/fp.vtu" --sky cie-overcast --units photometric --work-plane 0.85 --grid 0.27 \
   --sensors-out "$out/fp_sensors.csv" --stats "$out/fp.json" --threads 2 2>&1 | grep -E "phases|sensors  |daylight|wall"
 "$build/lambert" solve "$here/examples/window_room_daylight.obj" -o "$out/wr.vtu" --sky cie-overcast --work-plane 0.85 \
   --grid 0.2 --sensors-out "$out/grid.csv" -q
