@@ -65,7 +65,7 @@ struct PatchSkyStats {
 // Direct sky (and ground) irradiance on each patch, at its centroid: the sky and ground seen through the
 // directions in which the centroid sees no patch (exact clipping, Gatherer::open). likely_visible(i, flags), if
 // given, sets flags[j] != 0 for the patches i probably sees (e.g. F_ij > 0 of an assembled operator): a hint that
-// makes the clipping ~4x faster on room scenes and never changes the result. Returns one value per patch.
+// makes the clipping ~3x faster on room scenes and never changes the result. Returns one value per patch.
 using VisibilityHint = std::function<void(int i, std::vector<char>& likely_visible)>;
 std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather,
                                          PatchSkyStats* stats, const VisibilityHint& likely_visible = {},
