@@ -582,7 +582,9 @@ TEST_F(Daylight, BadSensorFilesExitOneNamingTheLine) {
                         Case{"1,1,1,0,1,0\n1,1,1,0,0,0\n", "sensors.csv:2: the normal (0, 0, 0) has zero length"},
                         Case{"1,1,1,0,1,0\n\n1,1,1,0,1\n", "sensors.csv:3: 5 columns; expected 6"},
                         Case{"1,1,1,0,1,0,7\n", "sensors.csv:1: 7 columns; expected 6"},
-                        Case{"1,1,1,0,1,abc\n", "sensors.csv:1: column nz ('abc') is not a number"}}) {
+                        Case{"1,1,1,0,1,abc\n", "sensors.csv:1: column nz ('abc') is not a number"},
+                        Case{"x1,2,3,0,1,0\n", "sensors.csv:1: column x ('x1') is not a number"},
+                        Case{"x,y,z,nx,ny,nz\n", "no sensors"}}) {
     const std::string in = write("sensors.csv", c.text);
     const auto r = run_solve(obj + " -o " + path("r.vtu") + " --sky uniform --sensors " + in + " --sensors-out " +
                              path("o.csv"));

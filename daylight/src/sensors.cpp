@@ -40,6 +40,7 @@ std::vector<Sensor> read_sensors_csv(const std::string& path) {
   bool first = true;
   while (std::getline(in, line)) {
     ++number;
+    if (number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte-order mark
     const std::string l = trim(line);
     if (l.empty() || l[0] == '#') continue;
     std::vector<std::string> cols;
@@ -47,8 +48,13 @@ std::vector<Sensor> read_sensors_csv(const std::string& path) {
     std::string c;
     while (std::getline(ss, c, ',')) cols.push_back(trim(c));
     if (!l.empty() && l.back() == ',') cols.push_back("");
-    double v0 = 0;
-    if (first && !parse_number(cols[0], v0)) {  // a header line
+    // A header: the first line, with no numeric field (a line with some numbers is data, and checked as such).
+    bool any_number = false;
+    for (const std::string& col : cols) {
+      double v0 = 0;
+      any_number = any_number || parse_number(col, v0);
+    }
+    if (first && !any_number) {
       first = false;
       if (cols.size() != 6)
         throw InputError(fmt::format("{}:{}: the header has {} columns; expected 6 (x,y,z,nx,ny,nz)", path, number,
