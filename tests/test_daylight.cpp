@@ -416,6 +416,28 @@ TEST_F(Daylight, GlazingScalesSkyComponentByTransmittance) {
   }
 }
 
+// Glazing under the CIE overcast sky: the pane's outside (vertical, facing away from the room, nothing in front
+// of it) receives E_out = (Lz/3)(pi/2) + (2 Lz/3)(2/3) + L_ground pi/2 (the closed form of docs/physics.md §9 at
+// beta = 90 degrees), so a sensor in the black room gets tau E_out F(x -> window): 1e-9 relative.
+TEST_F(Daylight, GlazingUnderOvercastSkyMatchesClosedForm) {
+  const double tau = 0.7, ground = 0.2, Lz = 1;
+  const auto rows = solve("cie-overcast:1", 0, ground, true, false, kSensors, tau);
+  ASSERT_EQ(rows.size(), 6u);
+  const double Eh = 7 * kPi / 9 * Lz;
+  const double Eout = Lz / 3 * kPi / 2 + 2 * Lz / 3 * 2.0 / 3 + ground * Eh / kPi * kPi / 2;
+  std::stringstream in(kSensors);
+  std::string line;
+  std::getline(in, line);
+  for (size_t k = 0; k < rows.size(); ++k) {
+    std::getline(in, line);
+    double v[6];
+    std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5]);
+    const double F = formfactor::point_to_polygon(Vec3(v[0], v[1], v[2]), Vec3(v[3], v[4], v[5]), window_parts(-1)[0]);
+    const double ref = 100 * tau * Eout * F / Eh;
+    EXPECT_NEAR(rows[k].df, ref, 1e-9 * ref) << "sensor " << k;
+  }
+}
+
 // A sensor behind the partition sees no sky: in a black room it gets nothing, in a grey room only light
 // reflected by the room's surfaces (interreflection), while a sensor before the partition gets the sky.
 TEST_F(Daylight, SensorsHiddenFromTheWindowGetOnlyInterreflectedLight) {

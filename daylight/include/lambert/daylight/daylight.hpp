@@ -87,7 +87,7 @@ struct Sensor {
 };
 
 // CSV with columns x,y,z,nx,ny,nz (metres; the normal need not be unit, is normalised), one sensor per line, an
-// optional header line (first line, not numeric), blank lines and lines starting with '#' skipped. Throws
+// optional header line (the first line, with no numeric field; a UTF-8 byte-order mark is skipped), blank lines and lines starting with '#' skipped. Throws
 // InputError naming file:line for a wrong column count, a non-number, NaN/Inf, or a zero normal; and for a
 // file without sensors.
 std::vector<Sensor> read_sensors_csv(const std::string& path);
