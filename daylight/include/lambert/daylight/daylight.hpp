@@ -86,10 +86,10 @@ struct Sensor {
   int floor = -1;               // work-plane nodes: the floor patch under the node; -1 for sensors from a file
 };
 
-// CSV with columns x,y,z,nx,ny,nz (metres; the normal need not be unit, is normalised), one sensor per line, an
-// optional header line (the first line, with no numeric field; a UTF-8 byte-order mark is skipped), blank lines and lines starting with '#' skipped. Throws
-// InputError naming file:line for a wrong column count, a non-number, NaN/Inf, or a zero normal; and for a
-// file without sensors.
+// CSV with columns x,y,z,nx,ny,nz (metres; the normal need not be unit, is normalised), one sensor per line; an
+// optional header (the first line, with no numeric field; a UTF-8 byte-order mark is skipped); blank lines and
+// lines starting with '#' skipped. Throws InputError naming file:line for a wrong column count, a non-number,
+// NaN/Inf, or a zero normal; and for a file without sensors.
 std::vector<Sensor> read_sensors_csv(const std::string& path);
 
 // Work-plane grid (docs/physics.md §9): a square grid of `spacing` (m) at `height` (m) above the floors, normal
