@@ -22,6 +22,7 @@
 #include "lambert/refine/adaptive.hpp"
 #include "lambert/solver/solve.hpp"
 #include "lambert/verify/verify.hpp"
+#include "daylight.hpp"
 #include "outputs.hpp"
 #include "progress.hpp"
 
@@ -129,6 +130,7 @@ struct Run {
   const refine::AdaptiveResult* adaptive = nullptr;  // solve --adaptive-budget only
   const formfactor::RowSumCheck* row_check = nullptr;  // independent ray estimate of row sums (final assembly)
   long long entries_written = -1;                  // formfactors only
+  const DaylightRun* daylight = nullptr;           // solve with --sky / sensors / --units photometric
 };
 
 // A finding that the summary and --stats report; `fatal` findings make the result untrustworthy (exit 3,
@@ -273,6 +275,7 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
     j["adaptive"] = a;
   }
   if (r.entries_written >= 0) j["entries_written"] = r.entries_written;
+  if (r.daylight && r.daylight->active()) j["daylight"] = r.daylight->stats();
   if (r.row_check) {
     const formfactor::RowSumCheck& c = *r.row_check;
     j["row_sum_check"] = {{"patches_checked", c.patches_checked}, {"rays", c.rays},
@@ -467,15 +470,25 @@ int finish_solve(const Run& run, PhaseTimer& timer, const std::string& detail) {
   const int status = verdict(findings, "the solution");
   if (status == 0) {
     timer.start("write");
-    write_output(o.output, [&](std::ostream& os) {
-      io::write_vtu(os, *run.scene, run.solution->radiance, run.solution->irradiance, o.crease_deg);
-    });
+    if (run.daylight && run.daylight->active()) {
+      ColorField irradiance = run.solution->irradiance;  // gains the direct sky
+      const auto extra = run.daylight->cell_arrays(*run.scene, run.solution->radiance, irradiance);
+      write_output(o.output, [&](std::ostream& os) {
+        io::write_vtu(os, *run.scene, run.solution->radiance, irradiance, o.crease_deg, extra);
+      });
+      run.daylight->write_outputs();
+    } else {
+      write_output(o.output, [&](std::ostream& os) {
+        io::write_vtu(os, *run.scene, run.solution->radiance, run.solution->irradiance, o.crease_deg);
+      });
+    }
     timer.stop();
     if (!o.stats.empty()) write_json(o.stats, stats_json(run, timer, findings));
     commit_outputs();  // all outputs or none
   }
   if (!o.quiet) {
     std::string s = summary(run, timer, findings, detail);
+    if (run.daylight) s += run.daylight->summary();
     if (status == 0) s += fmt::format("  output       {}\n", o.output);
     std::fputs(s.c_str(), stderr);
   }
@@ -529,7 +542,8 @@ int run_solve(const CommonOptions& o) {
   solver::Options so = o.solve;
   so.method = solver::parse_method(o.method);  // fail on a bad name before any work
   if (o.adaptive_budget > 0) return run_solve_adaptive(o, so, timer);
-  mesh::Scene scene = load(o, timer);
+  DaylightRun day(o);  // --sky, sensors, --units (checked before any work)
+  mesh::Scene scene = load(o, timer, /*solving=*/!day.sky_active());  // a sky is an emitter
 
   formfactor::Stats st;
   formfactor::DenseMatrixOperator F;
@@ -542,6 +556,11 @@ int run_solve(const CommonOptions& o) {
   timer.start("checks");
   const formfactor::RowSumCheck row_check = check_rows(o, scene, F, st);
 
+  ColorField Le = scene.emission_field();
+  if (day.sky_active()) {
+    timer.start("sky");
+    Le = day.emission(scene, F, o.quiet);  // rho E_sky / pi and tau E_outside / pi added to Le
+  }
   timer.start("solve");
   solver::Solution sol;
   {
@@ -550,11 +569,16 @@ int run_solve(const CommonOptions& o) {
       progress.note(fmt::format("channel {} iteration {} residual {:.2e}", channel, iteration, residual));
       progress.update(std::clamp(std::log10(std::max(residual, 1e-300)) / std::log10(so.tolerance), 0.0, 1.0));
     };
-    sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), scene.emission_field(), so);
+    sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), Le, so);
     so.progress = nullptr;
   }
+  if (day.sensors_requested()) {
+    timer.start("sensors");
+    day.sensors(scene, sol.radiance, o.quiet);
+  }
   timer.stop();
-  const Run run{.command = "solve", .options = &o, .scene = &scene, .ff = &st, .solution = &sol, .row_check = &row_check};
+  const Run run{.command = "solve", .options = &o, .scene = &scene, .ff = &st, .solution = &sol, .row_check = &row_check,
+                .daylight = &day};
   return finish_solve(run, timer, "");
 }
 

@@ -28,6 +28,11 @@ struct CommonOptions {
   formfactor::Options ff;            // --ff-tolerance / --tolerance (formfactors), --rays
   solver::Options solve;             // --tolerance (solve), --max-iterations
   refine::AdaptiveOptions adaptive;  // --adaptive-tol, --adaptive-rounds
+  // Daylight and photometry (app/daylight.hpp): --sky, --up, --ground-reflectance, --units, --sensors,
+  // --work-plane, --grid, --grid-inset, --sensors-out, --sensor-rays
+  std::string sky, up = "y", units = "radiometric", sensors, sensors_out;
+  double ground_reflectance = 0.2, work_plane = 0, grid = 0, grid_inset = 0.5;
+  int sensor_rays = 16;
 };
 
 struct VerifyOptions {

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "daylight.hpp"
 #include "outputs.hpp"
 #include "study.hpp"
 #include "lambert/formfactor/assemble.hpp"
@@ -140,6 +141,38 @@ int main(int argc, char** argv) {
       ->check(NonNegative)
       ->capture_default_str();
 
+  // solve: daylight and photometry (app/daylight.hpp, daylight/)
+  solve->add_option("--sky", common.sky,
+                    "Sky at infinity lighting the scene through every direction in which it sees no geometry: "
+                    "uniform[:L] or cie-overcast[:Lz] (L, Lz the (zenith) radiance in W m^-2 sr^-1, or luminance in "
+                    "cd m^-2 with --units photometric; default: 10,000 lx on an unobstructed horizontal plane)");
+  solve->add_option("--up", common.up, "Zenith direction of the sky: x, y, z, -x, -y or -z")->capture_default_str();
+  solve->add_option("--ground-reflectance", common.ground_reflectance,
+                    "Reflectance of the external ground seen below the horizon (lit by the unobstructed sky)")
+      ->check(Between(0.0, 1.0))
+      ->capture_default_str();
+  solve->add_option("--units", common.units,
+                    "radiometric (W m^-2, W m^-2 sr^-1) or photometric (lux, cd m^-2: 179 lm/W x (0.265 R + 0.670 G + "
+                    "0.065 B)); photometric adds 'illuminance' and 'luminance' to the .vtu")
+      ->check(CLI::IsMember({"radiometric", "photometric"}))
+      ->capture_default_str();
+  solve->add_option("--sensors", common.sensors, "Sensor points: CSV x,y,z,nx,ny,nz (metres; a header line allowed)")
+      ->check(CLI::ExistingFile);
+  solve->add_option("--work-plane", common.work_plane,
+                    "Sensors on a work plane this high (m) above the floors (with --grid; see README)")
+      ->check(Positive);
+  solve->add_option("--grid", common.grid, "Work-plane grid spacing (m)")->check(Positive);
+  solve->add_option("--grid-inset", common.grid_inset,
+                    "Work-plane nodes keep this distance (m) from walls and anything at work-plane height")
+      ->check(NonNegative)
+      ->capture_default_str();
+  solve->add_option("--sensors-out", common.sensors_out,
+                    "Sensor results: CSV x,y,z,illuminance,daylight_factor (input order) and a .vtu of points beside it");
+  solve->add_option("--sensor-rays", common.sensor_rays,
+                    "Visibility rays from a sensor to each patch that may be partly hidden")
+      ->check(Positive)
+      ->capture_default_str();
+
   // info
   auto* info = app.add_subcommand("info", "Print patches, materials, bounding box, emitted power and validation warnings");
   add_common(info, false);
@@ -198,6 +231,7 @@ int main(int argc, char** argv) {
 
   try {
     if (solve->parsed() || ff->parsed()) app::declare_files(common);  // refuse bad output paths before any work
+    if (solve->parsed()) app::declare_daylight_files(common);
     if (solve->parsed()) return app::run_solve(common);
     if (info->parsed()) return app::run_info(common);
     if (ff->parsed()) return app::run_formfactors(common);

@@ -7,6 +7,7 @@ PACKAGES=(
   libeigen3-dev        # dense linear algebra, Krylov solvers
   libopenmesh-dev      # polygon mesh (patches, adjacency)
   libcgal-dev          # geometry: convex hulls, mesh processing
+  libboost-dev         # Boost.Polygon (header-only): daylight sky clipping (CGAL pulls it in anyway)
   libembree-dev        # ray tracing for visibility
   libvtk9-dev          # .vtu output for ParaView
   libtbb-dev           # threads

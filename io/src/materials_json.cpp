@@ -154,14 +154,16 @@ class JsonMaterials {
       if (!value.is_object())
         error(where, "found " + kind(value) + "; expected an object {\"reflectance\": ..., \"emission\": ...}");
       for (auto& [key, v] : value.items())
-        if (key != "reflectance" && key != "emission" && key != "two_sided")
-          error(where, "unknown key " + quote(key) + "; expected \"reflectance\", \"emission\" and/or \"two_sided\"");
+        if (key != "reflectance" && key != "emission" && key != "two_sided" && key != "transmittance")
+          error(where, "unknown key " + quote(key) +
+                           "; expected \"reflectance\", \"emission\", \"transmittance\" and/or \"two_sided\"");
       int m = find(name);
       if (m < 0) m = add(name);
       mesh::Material& mat = soup_.materials[m];
       if (value.contains("reflectance")) mat.reflectance = colour(value["reflectance"], where + ".reflectance");
       if (value.contains("emission")) mat.emission = colour(value["emission"], where + ".emission");
       if (value.contains("two_sided")) mat.two_sided = flag(value["two_sided"], where + ".two_sided");
+      if (value.contains("transmittance")) mat.transmittance = colour(value["transmittance"], where + ".transmittance");
       mat.defined_at = SourceLoc{path_, 0};
       touched_.insert(m);
     }

@@ -196,6 +196,19 @@ class ObjReader {
         for (int i = 0; i < 3; ++i)
           c[i] = detail::finite_number(t[t.size() == 2 ? 1 : i + 1], file, line, what);
         (kw == "kd" ? cur->reflectance : cur->emission) = c;
+      } else if (kw == "transmittance") {
+        // lambert extension: diffuse visible transmittance of glazing, 1 (grey) or 3 values in [0, 1]
+        // (used by daylight solves, --sky). MTL's own Tf is not read: exporters write "Tf 1 1 1" for opaque
+        // materials.
+        const std::string what = "transmittance (diffuse visible transmittance)";
+        if (!cur) fail(file, line, what + " before any newmtl; expected 'newmtl NAME' first");
+        if (t.size() != 2 && t.size() != 4)
+          fail(file, line, what + " has " + std::to_string(t.size() - 1) + " values; expected 1 (grey) or 3 (r g b)");
+        for (int i = 0; i < 3; ++i) {
+          const double v = detail::finite_number(t[t.size() == 2 ? 1 : i + 1], file, line, what);
+          if (!(v >= 0 && v <= 1)) fail(file, line, what + " " + detail::format_double(v) + " is outside [0, 1]");
+          cur->transmittance[i] = v;
+        }
       } else if (kw == "two_sided") {
         // lambert extension: "two_sided" or "two_sided 1" = both sides reflect (two patches per face);
         // "two_sided 0" = one-sided (the default).
@@ -287,6 +300,7 @@ void write_obj(const mesh::PolygonSoup& soup, const std::string& obj_path) {
     rgb(mtl, "Kd", m.reflectance);
     rgb(mtl, "Ke", m.emission);
     if (m.two_sided) mtl += "two_sided 1\n";
+    if ((m.transmittance != 0).any()) rgb(mtl, "transmittance", m.transmittance);
   }
 
   std::string obj = "# written by lambert\nmtllib " + mtl_path.filename().string() + '\n';

@@ -92,8 +92,16 @@ struct ErrorCollector {
 
 }  // namespace
 
+// The grid as appended, zlib-compressed XML into `out` (VTK's errors collected into an InputError).
+void write_grid(std::ostream& out, vtkUnstructuredGrid* grid);
+
 void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& radiance,
                const ColorField& irradiance, double crease_angle_deg) {
+  write_vtu(out, scene, radiance, irradiance, crease_angle_deg, {});
+}
+
+void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& radiance,
+               const ColorField& irradiance, double crease_angle_deg, const std::vector<ExtraArray>& extra) {
   check_rows(radiance, scene, "radiance");
   check_rows(irradiance, scene, "irradiance");
   if (!(crease_angle_deg >= 0 && crease_angle_deg <= 180))
@@ -164,6 +172,30 @@ void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& ra
                               static_cast<vtkAbstractArray*>(material_id), static_cast<vtkAbstractArray*>(side)})
     cd->AddArray(a);
   cd->SetActiveScalars("radiance");
+  for (const ExtraArray& e : extra) {
+    if (e.components < 1 || e.values.size() != size_t(n) * size_t(e.components))
+      throw std::invalid_argument("write_vtu: array " + e.name + " has " + std::to_string(e.values.size()) +
+                                  " values; expected patches x components");
+    vtkNew<vtkDoubleArray> a;
+    a->SetName(e.name.c_str());
+    a->SetNumberOfComponents(e.components);
+    a->SetNumberOfTuples(n);
+    for (long i = 0; i < n; ++i) a->SetTypedTuple(i, e.values.data() + size_t(i) * size_t(e.components));
+    cd->AddArray(a);
+    if (e.point_average && e.components <= 3) {
+      ColorField f = ColorField::Zero(n, 3);
+      for (long i = 0; i < n; ++i)
+        for (int c = 0; c < e.components; ++c) f(i, c) = e.values[size_t(i) * size_t(e.components) + size_t(c)];
+      const ColorField pf = mesh::average_to_vertices(scene, split, f);
+      vtkNew<vtkDoubleArray> pa;
+      pa->SetName(e.name.c_str());
+      pa->SetNumberOfComponents(e.components);
+      pa->SetNumberOfTuples(np);
+      for (long i = 0; i < np; ++i)
+        for (int c = 0; c < e.components; ++c) pa->SetComponent(i, c, pf(i, c));
+      grid->GetPointData()->AddArray(pa);
+    }
+  }
 
   vtkNew<vtkStringArray> names;
   names->SetName("material_names");
@@ -175,6 +207,10 @@ void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& ra
   grid->GetFieldData()->AddArray(names);
   grid->GetFieldData()->AddArray(source);
 
+  write_grid(out, grid);
+}
+
+void write_grid(std::ostream& out, vtkUnstructuredGrid* grid) {
   ErrorCollector errors;
   vtkNew<vtkCallbackCommand> observer;
   observer->SetCallback(&ErrorCollector::callback);
@@ -202,6 +238,37 @@ void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& ra
   }
   const std::string data = writer->GetOutputString();
   out.write(data.data(), static_cast<std::streamsize>(data.size()));
+}
+
+void write_points_vtu(std::ostream& out, const std::vector<Vec3>& pts, const std::vector<ExtraArray>& arrays) {
+  const long n = static_cast<long>(pts.size());
+  vtkNew<vtkUnstructuredGrid> grid;
+  vtkNew<vtkPoints> points;
+  points->SetDataTypeToDouble();
+  points->SetNumberOfPoints(n);
+  for (long i = 0; i < n; ++i) points->SetPoint(i, pts[size_t(i)].data());
+  grid->SetPoints(points);
+  vtkNew<vtkCellArray> cells;
+  vtkNew<vtkUnsignedCharArray> types;
+  types->SetNumberOfValues(n);
+  for (long i = 0; i < n; ++i) {
+    const vtkIdType id = i;
+    cells->InsertNextCell(1, &id);
+    types->SetValue(i, VTK_VERTEX);
+  }
+  grid->SetCells(types, cells);
+  for (const ExtraArray& e : arrays) {
+    if (e.components < 1 || e.values.size() != size_t(n) * size_t(e.components))
+      throw std::invalid_argument("write_points_vtu: array " + e.name + " has " + std::to_string(e.values.size()) +
+                                  " values; expected points x components");
+    vtkNew<vtkDoubleArray> a;
+    a->SetName(e.name.c_str());
+    a->SetNumberOfComponents(e.components);
+    a->SetNumberOfTuples(n);
+    for (long i = 0; i < n; ++i) a->SetTypedTuple(i, e.values.data() + size_t(i) * size_t(e.components));
+    grid->GetPointData()->AddArray(a);
+  }
+  write_grid(out, grid);
 }
 
 void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorField& radiance,

@@ -162,6 +162,12 @@ void check_material(const PolygonSoup& soup, int m, int first_face) {
         why += ": a reflectance of 1 or more absorbs nothing, so a closed scene has no steady state";
       fail(who + ": " + why);
     }
+    const double t = mat.transmittance[c];
+    if (!(t >= 0 && t <= 1))
+      fail(who + ": transmittance " + std::string(1, channel[c]) + " = " + num(t) + " is outside [0, 1]");
+    if (!(r + t <= 1))
+      fail(who + ": reflectance + transmittance " + std::string(1, channel[c]) + " = " + num(r + t) +
+           " exceeds 1: the glazing would create light");
     const double e = mat.emission[c];
     if (!(e >= 0) || !std::isfinite(e))
       fail(who + ": emission " + std::string(1, channel[c]) + " = " + num(e) +

@@ -2,6 +2,7 @@
 // ParaView output: the solved scene as a VTK XML unstructured grid (.vtu).
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "lambert/mesh/scene.hpp"
 
@@ -26,5 +27,21 @@ void write_vtu(const std::string& path, const mesh::Scene& scene, const ColorFie
 // errors are the caller's to check.
 void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& radiance, const ColorField& irradiance,
                double crease_angle_deg = mesh::VertexSplit::kDefaultCreaseDeg);
+
+// An extra array: `components` values per cell (or point), row-major; with point_average, a cell array is also
+// written as point data (area-weighted averages over the split vertices, as "radiance").
+struct ExtraArray {
+  std::string name;
+  int components = 1;
+  std::vector<double> values;
+  bool point_average = false;
+};
+// write_vtu with extra cell arrays (daylight: "sky_irradiance", "illuminance", "luminance", ...). Throws
+// std::invalid_argument if an array's size is not patches x components.
+void write_vtu(std::ostream& out, const mesh::Scene& scene, const ColorField& radiance, const ColorField& irradiance,
+               double crease_angle_deg, const std::vector<ExtraArray>& extra_cell_arrays);
+
+// Points (one VTK_VERTEX cell each) with point-data arrays of points.size() x components values: sensor grids.
+void write_points_vtu(std::ostream& out, const std::vector<Vec3>& points, const std::vector<ExtraArray>& arrays);
 
 }  // namespace lambert::io

@@ -15,6 +15,11 @@ struct Material {
   RGB emission = RGB::Zero();            // emitted radiance Le, W m^-2 sr^-1, must be >= 0
   bool two_sided = false;                // each face becomes two patches, front and back (mesh::prepare)
   SourceLoc defined_at;                  // where the values came from (MTL line, JSON file, ...)
+  // Diffuse visible transmittance tau per channel (glazing; MTL `transmittance`, a lambert extension):
+  // in [0, 1] with reflectance + transmittance <= 1. Only a daylight solve (--sky) uses it: the patch then
+  // passes tau of the irradiance reaching its back (outside) into the room, diffusely (daylight/).
+  // (Last, so that aggregate initialisers of the fields above stay valid.)
+  RGB transmittance = RGB::Zero();
 };
 
 struct SoupFace {

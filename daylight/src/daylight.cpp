@@ -1,0 +1,443 @@
+// Sky irradiance on patches, glazing, and gathering at points (docs/physics.md §9).
+#include "lambert/daylight/daylight.hpp"
+
+#include <boost/polygon/polygon.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <map>
+#include <tuple>
+
+#include "lambert/formfactor/kernel.hpp"
+
+namespace lambert::daylight {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct Sample {
+  Vec3 p;
+  double area;
+};
+
+// Stratified points on a patch: each triangle of its triangulation split into s^2 congruent sub-triangles
+// (s the smallest with 2-ish x s^2 x triangles >= count), the sub-triangles' centroids with their areas.
+void patch_samples(const mesh::PatchGeometry& g, int p, int count, std::vector<Sample>& out) {
+  out.clear();
+  const int nt = g.triangle_offsets[p + 1] - g.triangle_offsets[p];
+  int s = 1;
+  while (s * s * nt < count) ++s;
+  for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
+    const Vec3 &A = g.points[g.triangles[t][0]], &B = g.points[g.triangles[t][1]], &C = g.points[g.triangles[t][2]];
+    const double area = 0.5 * (B - A).cross(C - A).norm() / double(s * s);
+    const Vec3 u = (B - A) / double(s), v = (C - A) / double(s);
+    for (int i = 0; i < s; ++i)
+      for (int j = 0; i + j < s; ++j) {
+        out.push_back({A + (i + 1.0 / 3) * u + (j + 1.0 / 3) * v, area});           // upright sub-triangle
+        if (i + j + 1 < s) out.push_back({A + (i + 2.0 / 3) * u + (j + 2.0 / 3) * v, area});  // inverted one
+      }
+  }
+}
+
+// Sutherland-Hodgman on corners relative to the apex: the part with d . p >= 0.
+void clip_plane(const std::vector<Vec3>& poly, const Vec3& d, std::vector<Vec3>& out) {
+  out.clear();
+  const size_t m = poly.size();
+  if (m == 0) return;
+  double sp = d.dot(poly[m - 1]);
+  for (size_t k = 0; k < m; ++k) {
+    const Vec3& prev = poly[(k + m - 1) % m];
+    const Vec3& cur = poly[k];
+    const double sc = d.dot(cur);
+    if (sc >= 0) {
+      if (sp < 0) out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
+      out.push_back(cur);
+    } else if (sp > 0) {
+      out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
+    }
+    sp = sc;
+  }
+  if (out.size() < 3) out.clear();
+}
+
+namespace bp = boost::polygon;
+constexpr double kGridScale = double(1 << 28);  // hemicube face coordinates [-1, 1] -> integers
+
+// One face of the hemicube around n: direction f, in-face axes ea, eb; the face is [-1, 1] x [b0, 1] in
+// (p.ea / p.f, p.eb / p.f) (b0 = 0 for the side faces: only directions with n . p >= 0).
+struct CubeFace {
+  Vec3 f, ea, eb;
+  double b0;
+};
+
+// The open directions from x (no patch in them) by exact clipping: every patch's polygon projected onto the
+// hemicube faces, united per face, the face minus the union mapped back to directions and integrated.
+// skip[j]: patch j is left out (x's own plane, or outside x's hemisphere). first[j]: patch j is likely visible
+// from x (a hint only: it orders the work, never changes the result). The patches marked `first` are united
+// and subtracted first; the others are then projected and subtracted only where their bounding box meets
+// what is left open, which in a room is a small region (windows, doors) that few hidden patches reach.
+// The scene's patches merged per plane (coplanar patches united: far fewer, larger polygons to clip).
+struct Merged {
+  std::vector<std::vector<Vec3>> polygons;  // keyholed where a union has holes
+  std::vector<int> group;                   // polygon -> plane group
+  std::vector<int> patch_group;             // patch -> plane group
+  int groups = 0;
+};
+
+Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& up,
+                     const std::vector<char>& skip_group, const std::vector<char>& first_group) {
+  const Vec3 t1 = n.unitOrthogonal(), t2 = n.cross(t1);
+  const CubeFace faces[5] = {{n, t1, t2, -1}, {t1, t2, n, 0}, {-t1, t2, n, 0}, {t2, t1, n, 0}, {-t2, t1, n, 0}};
+  thread_local std::vector<Vec3> rel, a, b;
+  thread_local std::vector<bp::point_data<int>> pts;
+  using namespace bp::operators;
+  Moments open;
+  for (const CubeFace& F : faces) {
+    const Vec3 planes[4] = {F.f - F.ea, F.f + F.ea, F.f - F.eb, F.b0 < 0 ? Vec3(F.f + F.eb) : F.eb};
+    // Projects patch j onto this face into pts; false if it misses the face.
+    auto project = [&](int j) {
+      const auto& poly = M.polygons[size_t(j)];
+      rel.resize(poly.size());
+      for (size_t k = 0; k < poly.size(); ++k) rel[k] = poly[k] - x;
+      clip_plane(rel, F.f, a);
+      for (const Vec3& d : planes) {
+        if (a.empty()) break;
+        clip_plane(a, d, b);
+        std::swap(a, b);
+      }
+      pts.clear();
+      if (a.size() < 3) return false;
+      for (const Vec3& p : a) {
+        const double w = F.f.dot(p);
+        if (!(w > 0)) continue;  // the apex itself (x on the patch's boundary)
+        const double u = std::clamp(F.ea.dot(p) / w, -1.0, 1.0), v = std::clamp(F.eb.dot(p) / w, F.b0, 1.0);
+        pts.emplace_back(int(std::lround(u * kGridScale)), int(std::lround(v * kGridScale)));
+      }
+      return pts.size() >= 3;
+    };
+    bp::polygon_set_data<int> sky, covered;
+    sky.insert(bp::rectangle_data<int>(-int(kGridScale), int(F.b0 * kGridScale), int(kGridScale), int(kGridScale)));
+    for (int pass = 0; pass < 2; ++pass) {
+      bp::rectangle_data<int> box;
+      if (pass == 1) {
+        if (sky.empty()) break;  // the likely-visible patches cover this face
+        sky.extents(box);
+      }
+      covered.clear();
+      for (int j = 0; j < int(M.polygons.size()); ++j) {
+        const size_t grp = size_t(M.group[size_t(j)]);
+        if (skip_group[grp] || (first_group[grp] != 0) != (pass == 0)) continue;
+        if (!project(j)) continue;
+        if (pass == 1) {
+          int lo_u = INT32_MAX, hi_u = INT32_MIN, lo_v = INT32_MAX, hi_v = INT32_MIN;
+          for (const auto& q : pts) {
+            lo_u = std::min(lo_u, bp::x(q));
+            hi_u = std::max(hi_u, bp::x(q));
+            lo_v = std::min(lo_v, bp::y(q));
+            hi_v = std::max(hi_v, bp::y(q));
+          }
+          if (hi_u <= bp::xl(box) || lo_u >= bp::xh(box) || hi_v <= bp::yl(box) || lo_v >= bp::yh(box)) continue;
+        }
+        bp::polygon_data<int> pd;
+        pd.set(pts.begin(), pts.end());
+        covered.insert(pd);
+      }
+      sky -= covered;
+    }
+    std::vector<bp::polygon_data<int>> out;  // outer boundaries with holes keyholed in: signed areas add up
+    sky.get(out);
+    for (const auto& pd : out) {
+      rel.clear();
+      for (auto it = pd.begin(); it != pd.end(); ++it)
+        rel.push_back(x + F.f + (double(bp::x(*it)) / kGridScale) * F.ea + (double(bp::y(*it)) / kGridScale) * F.eb);
+      if (rel.size() >= 3) open += polygon_moments(x, n, up, rel);
+    }
+  }
+  return open;
+}
+
+}  // namespace
+
+struct Gatherer::Impl {
+  const mesh::PatchGeometry& g;
+  std::vector<std::vector<Sample>> samples;
+  std::vector<double> offset;  // n_p . c_p
+  std::unique_ptr<formfactor::Visibility> vis;
+  bool occluders = false;  // some patch can block a segment between scene points
+  double eps = 0, ray_offset = 0;
+  mutable std::atomic<long long> rays{0};
+  Merged merged;
+
+  // Groups coplanar patches (either orientation) and unites each group in its plane (integer coordinates of
+  // 2^-28 of the scene's size: edges move by at most ~1e-8 of it).
+  void merge_planes(double diag) {
+    std::map<std::tuple<long long, long long, long long, long long>, int> key_group;
+    merged.patch_group.assign(size_t(g.size()), -1);
+    std::vector<std::vector<int>> members;
+    std::vector<Vec3> gn;
+    std::vector<Vec3> go;
+    for (int p = 0; p < g.size(); ++p) {
+      Vec3 nn = g.normal[p];
+      int big = 0;
+      for (int c = 1; c < 3; ++c)
+        if (std::abs(nn[c]) > std::abs(nn[big])) big = c;
+      if (nn[big] < 0) nn = -nn;
+      const double d = nn.dot(g.centroid[p]);
+      const auto key = std::make_tuple(std::llround(nn.x() * 1e9), std::llround(nn.y() * 1e9), std::llround(nn.z() * 1e9),
+                                       std::llround(d / (1e-9 * diag)));
+      auto [it, added] = key_group.emplace(key, int(members.size()));
+      if (added) {
+        members.emplace_back();
+        gn.push_back(nn);
+        go.push_back(g.centroid[p]);
+      }
+      members[size_t(it->second)].push_back(p);
+      merged.patch_group[size_t(p)] = it->second;
+    }
+    merged.groups = int(members.size());
+    const double scale = double(1 << 28) / diag;
+    for (size_t G = 0; G < members.size(); ++G) {
+      if (members[G].size() == 1) {
+        const auto poly = g.polygon(members[G][0]);
+        merged.polygons.emplace_back(poly.begin(), poly.end());
+        merged.group.push_back(int(G));
+        continue;
+      }
+      const Vec3 e1 = gn[G].unitOrthogonal(), e2 = gn[G].cross(e1), o = go[G];
+      bp::polygon_set_data<int> set;
+      for (int p : members[G]) {
+        std::vector<bp::point_data<int>> pts;
+        for (const Vec3& v : g.polygon(p))
+          pts.emplace_back(int(std::lround(e1.dot(v - o) * scale)), int(std::lround(e2.dot(v - o) * scale)));
+        bp::polygon_data<int> pd;
+        pd.set(pts.begin(), pts.end());
+        set.insert(pd);
+      }
+      std::vector<bp::polygon_data<int>> out;
+      set.get(out);
+      for (const auto& pd : out) {
+        std::vector<Vec3> poly;
+        for (auto it = pd.begin(); it != pd.end(); ++it) {
+          const Vec3 q = o + (double(bp::x(*it)) / scale) * e1 + (double(bp::y(*it)) / scale) * e2;
+          poly.push_back(q + (gn[G].dot(o) - gn[G].dot(q)) * gn[G]);  // exactly in the plane
+        }
+        if (poly.size() >= 3) {
+          merged.polygons.push_back(std::move(poly));
+          merged.group.push_back(int(G));
+        }
+      }
+    }
+  }
+
+  // Plane groups to skip (the group of `ignore`) and to take first (any member likely visible).
+  void group_flags(int ignore, const std::vector<char>& likely, std::vector<char>& skip, std::vector<char>& first) const {
+    skip.assign(size_t(merged.groups), 0);
+    first.assign(size_t(merged.groups), 0);
+    if (ignore >= 0) skip[size_t(merged.patch_group[size_t(ignore)])] = 1;
+    for (int j = 0; j < g.size(); ++j)
+      if (likely[size_t(j)]) first[size_t(merged.patch_group[size_t(j)])] = 1;
+  }
+
+  Impl(const mesh::PatchGeometry& geometry, int count) : g(geometry) {
+    samples.resize(size_t(g.size()));
+    offset.resize(size_t(g.size()));
+    Eigen::AlignedBox3d box;
+    for (const Vec3& v : g.points) box.extend(v);
+    const double diag = box.isEmpty() ? 1.0 : box.diagonal().norm();
+    eps = 1e-9 * diag;
+    ray_offset = 1e-7 * diag;
+    for (int p = 0; p < g.size(); ++p) {
+      patch_samples(g, p, count, samples[size_t(p)]);
+      offset[size_t(p)] = g.normal[p].dot(g.centroid[p]);
+    }
+    occluders = !formfactor::potential_occluders(g).empty();
+    merge_planes(diag);
+    vis = formfactor::make_embree_visibility(g);
+  }
+
+  bool coplanar(int p, int q) const {
+    const double c = g.normal[p].dot(g.normal[q]);
+    if (std::abs(c) < 1 - 1e-9) return false;
+    return std::abs(offset[size_t(p)] - (c > 0 ? offset[size_t(q)] : -offset[size_t(q)])) <= eps;
+  }
+
+  // Kernel-weighted fraction of patch j visible from x (rays from x, nudged along n, to j's samples).
+  double visible_fraction(const Vec3& x, const Vec3& n, int j, int ignore) const {
+    const auto& S = samples[size_t(j)];
+    thread_local std::vector<Vec3> from, to;
+    thread_local std::vector<std::uint8_t> hidden;
+    thread_local std::vector<double> w;
+    from.assign(S.size(), x + ray_offset * n);
+    to.resize(S.size());
+    hidden.assign(S.size(), 0);
+    w.resize(S.size());
+    double wsum = 0;
+    for (size_t k = 0; k < S.size(); ++k) {
+      to[k] = S[k].p;
+      const Vec3 d = S[k].p - x;
+      const double r2 = d.squaredNorm();
+      w[k] = r2 > 0 ? std::max(0.0, n.dot(d)) * std::abs(g.normal[j].dot(d)) / (r2 * r2) * S[k].area : 0.0;
+      wsum += w[k];
+    }
+    if (!(wsum > 0)) {
+      for (size_t k = 0; k < S.size(); ++k) w[k] = S[k].area;
+      wsum = 0;
+      for (double v : w) wsum += v;
+    }
+    vis->occluded(from, to, ignore, j, hidden);
+    rays += (long long)S.size();
+    double seen = 0;
+    for (size_t k = 0; k < S.size(); ++k)
+      if (!hidden[k]) seen += w[k];
+    return seen / wsum;
+  }
+};
+
+Gatherer::Gatherer(const mesh::PatchGeometry& geometry, int rays) : impl_(std::make_unique<Impl>(geometry, std::max(1, rays))) {}
+Gatherer::~Gatherer() = default;
+long long Gatherer::rays_cast() const { return impl_->rays.load(); }
+
+Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, const ColorField* radiance,
+                                  int ignore) const {
+  const Impl& I = *impl_;
+  const mesh::PatchGeometry& g = I.g;
+  Result r;
+  // Occlusion is possible when some patch can block a segment from x: x behind some patch's plane, or patches
+  // that can block segments between scene points.
+  bool rays = I.occluders;
+  for (int k = 0; k < g.size() && !rays; ++k)
+    if (k != ignore && g.normal[k].dot(x) - I.offset[size_t(k)] < -I.eps && !(ignore >= 0 && I.coplanar(k, ignore)))
+      rays = true;
+  Moments covered;
+  thread_local std::vector<char> first;  // patches x sees (a hint for the clipping)
+  first.assign(size_t(g.size()), 0);
+  for (int j = 0; j < g.size(); ++j) {
+    if (j == ignore || (ignore >= 0 && I.coplanar(j, ignore))) continue;
+    const auto poly = g.polygon(j);
+    const Moments m = polygon_moments(x, n, up, poly);
+    if (!(m.cos_above + m.cos_below > 0)) continue;  // outside x's front hemisphere
+    const bool lit = radiance && g.normal[j].dot(x) - I.offset[size_t(j)] > 0;
+    if (rays && !lit) continue;  // only its coverage matters, and the clipping below takes it
+    const double V = rays ? I.visible_fraction(x, n, j, ignore) : 1.0;
+    first[size_t(j)] = V > 0;
+    if (!rays) covered += m;
+    if (lit && V > 0) {
+      const double F = formfactor::point_to_polygon(x, n, poly);
+      r.from_patches += (V * kPi * F) * radiance->row(j).transpose().array();
+    }
+  }
+  if (rays) {
+    thread_local std::vector<char> skip_group, first_group;
+    I.group_flags(ignore, first, skip_group, first_group);
+    r.open = open_moments(I.merged, x, n, up, skip_group, first_group);
+    r.clipped = true;
+  } else {
+    const Moments h = hemisphere_moments(n, up);
+    r.open.cos_above = h.cos_above - covered.cos_above;
+    r.open.cos_up_above = h.cos_up_above - covered.cos_up_above;
+    r.open.cos_below = h.cos_below - covered.cos_below;
+  }
+  return r;
+}
+
+Moments Gatherer::open(const Vec3& x, const Vec3& n, const Vec3& up, int ignore,
+                       const std::vector<char>& likely_visible) const {
+  const Impl& I = *impl_;
+  thread_local std::vector<char> skip_group, first_group;
+  I.group_flags(ignore, likely_visible, skip_group, first_group);
+  return open_moments(I.merged, x, n, up, skip_group, first_group);
+}
+
+const mesh::PatchGeometry& Gatherer::geometry() const { return impl_->g; }
+
+std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather,
+                                         PatchSkyStats* stats, const VisibilityHint& likely_visible,
+                                         const std::function<void(double)>& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const mesh::PatchGeometry& g = scene.geometry;
+  const int N = g.size();
+  LAMBERT_CHECK(&gather.geometry() == &g, "patch_sky_irradiance: the Gatherer is not over this scene's geometry");
+  std::vector<double> E(size_t(N), 0.0);
+  std::atomic<long long> points{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, N, 1), [&](const tbb::blocked_range<int>& range) {
+    std::vector<char> likely(static_cast<size_t>(N), 0);
+    for (int i = range.begin(); i < range.end(); ++i) {
+      if (likely_visible) likely_visible(i, likely);
+      E[size_t(i)] = irradiance(sky, gather.open(g.centroid[i], g.normal[i], sky.up, i, likely));
+      const long long done = ++points;
+      if (progress) progress(double(done) / double(N));
+    }
+  });
+  PatchSkyStats st;
+  st.points = points.load();
+  for (int i = 0; i < N; ++i) {
+    double& e = E[size_t(i)];
+    if (e < 0) {  // round-off of the clipping where (almost) no sky is seen: counted, set to 0
+      ++st.negative_set_to_zero;
+      st.most_negative = std::min(st.most_negative, e);
+      e = 0;
+    }
+    if (e > 1e-6 * sky.horizontal_irradiance()) ++st.patches_lit;
+    if ((scene.materials[scene.material[i]].transmittance > 0).any()) ++st.glazing_patches;
+  }
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (stats) *stats = st;
+  return E;
+}
+
+std::vector<double> glazing_outside_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather) {
+  const mesh::PatchGeometry& g = scene.geometry;
+  std::vector<double> E(size_t(g.size()), 0.0);
+  std::vector<int> glazing;
+  for (int p = 0; p < g.size(); ++p)
+    if ((scene.materials[scene.material[p]].transmittance > 0).any()) glazing.push_back(p);
+  tbb::parallel_for(size_t(0), glazing.size(), [&](size_t k) {
+    const int p = glazing[k];
+    std::vector<Sample> S;
+    patch_samples(g, p, 16, S);
+    double sum = 0, area = 0;
+    for (const Sample& s : S) {
+      const Gatherer::Result r = gather.gather(s.p, -g.normal[p], sky.up, nullptr, p);
+      sum += s.area * irradiance(sky, r.open);
+      area += s.area;
+    }
+    E[size_t(p)] = area > 0 ? sum / area : 0.0;
+  });
+  return E;
+}
+
+ColorField daylight_emission(const mesh::Scene& scene, const std::vector<double>& sky_irradiance,
+                             const std::vector<double>& outside_irradiance) {
+  ColorField Le = scene.emission_field();
+  for (int p = 0; p < scene.patches(); ++p) {
+    const mesh::Material& m = scene.materials[scene.material[p]];
+    const double es = p < int(sky_irradiance.size()) ? sky_irradiance[size_t(p)] : 0.0;
+    const double eo = p < int(outside_irradiance.size()) ? outside_irradiance[size_t(p)] : 0.0;
+    for (int c = 0; c < 3; ++c) Le(p, c) += (m.reflectance[c] * es + m.transmittance[c] * eo) / kPi;
+  }
+  return Le;
+}
+
+std::vector<SensorResult> evaluate_sensors(const std::vector<Sensor>& sensors, const Gatherer& gather,
+                                           const ColorField& radiance, const Sky* sky, const Vec3& up,
+                                           const std::function<void(double)>& progress) {
+  std::vector<SensorResult> out(sensors.size());
+  std::atomic<size_t> done{0};
+  tbb::parallel_for(size_t(0), sensors.size(), [&](size_t k) {
+    const Gatherer::Result r = gather.gather(sensors[k].position, sensors[k].normal, up, &radiance, -1);
+    SensorResult& s = out[k];
+    s.from_patches = r.from_patches;
+    s.sky = sky ? irradiance(*sky, r.open) : 0.0;
+    s.irradiance = s.from_patches + s.sky;
+    const size_t d = ++done;
+    if (progress) progress(double(d) / double(sensors.size()));
+  });
+  return out;
+}
+
+}  // namespace lambert::daylight
