@@ -16,6 +16,7 @@ struct HNode {
   Vec3 S = Vec3::Zero();     // sum of area * normal over the patches (m^2)
   Vec3 axis = Vec3::UnitZ(); // normal cone axis (unit)
   double cone = 0;           // normal cone half-angle (radians), pi = any direction
+  double cos_cone = 1, sin_cone = 0;
   double R = 0;              // radius of a sphere about c holding every corner (m)
   double area = 0;           // m^2
   double slab_lo = 0, slab_hi = 0;  // flat nodes: range of axis . (x - c) over the corners (m)
