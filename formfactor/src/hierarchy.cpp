@@ -224,19 +224,23 @@ class Refiner {
                        " MB); raise --hierarchy-tolerance, use fewer patches (--max-edge) or more memory");
   }
 
+  // max over y's corners of n . (q - c_y) (n unit).
+  static double support(const HNode& y, const Vec3& n) {
+    if (y.flat) {
+      const double a = n.dot(y.axis);
+      return std::max(a * y.slab_hi, a * y.slab_lo) + (n - a * y.axis).norm() * y.R;
+    }
+    const Vec3 ctr = 0.5 * (y.box.lo + y.box.hi), half = 0.5 * (y.box.hi - y.box.lo);
+    return n.dot(ctr - y.c) + n.cwiseAbs().dot(half);
+  }
+
   // Every receiver of x sees nothing of y (each patch of y is behind or in the plane of each patch of x).
   bool faces_away(const HNode& x, const HNode& y) const {
     const Vec3 U = y.c - x.c;
     const double D = U.norm();
     if (x.flat) {
       const Vec3& n = x.axis;
-      double sup;  // max over y's corners of n . (q - c_y)
-      if (y.flat) {
-        sup = std::max(n.dot(y.axis) * y.slab_hi, n.dot(y.axis) * y.slab_lo) + (n - n.dot(y.axis) * y.axis).norm() * y.R;
-      } else {
-        const Vec3 ctr = 0.5 * (y.box.lo + y.box.hi), half = 0.5 * (y.box.hi - y.box.lo);
-        sup = n.dot(ctr - y.c) + n.cwiseAbs().dot(half);
-      }
+      const double sup = support(y, n);
       const double eps = d_.P.scene_eps + x.cone * (D + x.R + y.R);
       return n.dot(U) + sup <= x.slab_lo + eps;
     }
@@ -305,50 +309,48 @@ class Refiner {
     const double s = (A.R + B.R) / D;
     if (!(s < 0.5)) return false;
     const Vec3 w = U / D;
-    // m = cos(theta + cone + delta), theta the angle between the cone's axis and the direction, delta =
-    // asin(s) the angle the clusters subtend: the smallest cosine of any normal with any direction between them
-    // (by angle addition, no trigonometric calls; the sum must stay below pi/2).
+    // Per side: m = cos(theta + cone + delta), the smallest cosine of a normal with a direction between the
+    // clusters (theta the angle between the cone's axis and the centre direction, delta = asin(s) the angle the
+    // clusters subtend), and cmax = cos(max(0, theta - cone - delta)), the largest; by angle addition.
     const double cd = std::sqrt(1 - s * s);
-    // Also the largest cosine, cos(max(0, theta - cone - delta)), for the form-factor bound of the link.
-    double cmax_a = 1, cmax_b = 1;
-    auto margin = [&](const HNode& X, const Vec3& dir, double& cmax) {
-      const double c1 = X.axis.dot(dir);
-      if (!(c1 > 0) || X.cos_cone <= 0) return -1.0;
-      const double s1 = X.axis.cross(dir).norm();
-      const double c2 = c1 * X.cos_cone - s1 * X.sin_cone, s2 = s1 * X.cos_cone + c1 * X.sin_cone;
-      if (!(c2 > 0)) return -1.0;
-      const double cm = X.cos_cone * cd - X.sin_cone * s;  // cos(cone + delta)
-      const double sm = X.sin_cone * cd + X.cos_cone * s;
-      cmax = c1 >= cm ? 1.0 : c1 * cm + s1 * sm;  // theta <= cone + delta: some normal may point along dir
-      return c2 * cd - s2 * s;
+    auto cosines = [&](const HNode& X, const Vec3& dir, double& m, double& cmax) {
+      const double c1 = X.axis.dot(dir), s1 = X.axis.cross(dir).norm();
+      const double cm = X.cos_cone * cd - X.sin_cone * s, sm = X.sin_cone * cd + X.cos_cone * s;  // cone + delta
+      cmax = c1 >= cm ? 1.0 : c1 * cm + s1 * sm;
+      m = (c1 > 0 && X.cos_cone > 0 && c1 * X.cos_cone - s1 * X.sin_cone > 0) ? c1 * cm - s1 * sm : -1.0;
     };
-    const double ma = margin(A, w, cmax_a), mb = margin(B, -w, cmax_b);
-    // Every cosine stays positive over the pair (the kernel never clips); the estimate's 1/m terms take care of
-    // grazing directions. The margin below only keeps 1/m finite.
-    if (!(ma > 1e-3 * s && mb > 1e-3 * s)) return false;
-    // Second-order remainder of the expansion, relative: s^2 (10 + 4/m_A + 4/m_B + 1/(m_A m_B)) bounds it
-    // pointwise; summed over a link the centroid expansion cancels most of it: kExpansionConstant (calibrated
-    // on the test scenes: sphere, closed box, room with block, Cornell box; the largest observed ratio of the
-    // actual row error to the admitted one was 0.18 at this constant, so the estimate holds with a 5x margin).
-    const double e = kExpansionConstant * s * s * (10 + 4 / ma + 4 / mb + 1 / (ma * mb));
-    // Form-factor bounds of the link (every kernel value <= cmax_a cmax_b / (pi d_min^2)).
-    const double dmin = D - A.R - B.R;
-    const double kb = cmax_a * cmax_b / (kPi * dmin * dmin);
-    const double Fab = std::min(1.0, B.area * kb), Fba = std::min(1.0, A.area * kb);
+    double ma, mb, ca, cb;
+    cosines(A, w, ma, ca);
+    cosines(B, -w, mb, cb);
+    // The expansion needs every receiver to face every source point and vice versa (the kernel never clips):
+    // m > 0, or for a flat cluster the other one on or in front of all its planes (a wall standing on a floor).
+    auto in_front = [&](const HNode& X, const HNode& Y) {
+      return X.flat && -support(Y, -X.axis) + X.axis.dot(Y.c - X.c) >= X.slab_hi - d_.P.scene_eps;
+    };
+    if (!(ma > 0 || in_front(A, B)) || !(mb > 0 || in_front(B, A))) return false;
+    // Error of the first-order expansion per receiver, absolute (F units): the second-order remainder of
+    // (n_i.u)(n_j.u)/|u|^4 is at most s^2 (10 ca cb + 4 ca + 4 cb + 1) / (pi d_min^2) per unit source area;
+    // summed over a link the centroid expansion cancels most of it: kExpansionConstant (calibrated on the test
+    // scenes: sphere, closed box, room with block, Cornell box; hierarchy tests: the actual row error stayed
+    // below 1/5 of the admitted one).
+    const double dmin = D - A.R - B.R, dmax = D + A.R + B.R;
+    const double k_hi = ca * cb / (kPi * dmin * dmin), k_lo = std::max(ma, 0.0) * std::max(mb, 0.0) / (kPi * dmax * dmax);
+    const double e = kExpansionConstant * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
     const double la = std::max(lmax_[a], 0.0) / lref_, lb = std::max(lmax_[b], 0.0) / lref_;
     const double tol = o_.tolerance;
-    // Accepted when the relative error times the source's brightness is within the tolerance (relative to the
-    // brightest patch), or when the link can carry at most 1% of the tolerance in absolute terms.
-    auto ok = [&](double rel) {
-      return (rel * lb <= tol || rel * lb * Fab <= 0.01 * tol) && (rel * la <= tol || rel * la * Fba <= 0.01 * tol);
+    // Accepted when the error times the source's brightness is within the tolerance relative to the link's
+    // smallest value (relative), or is at most 1% of the tolerance (absolute: grazing and distant links).
+    auto ok = [&](double err_a, double err_b) {  // errors per unit area of the source
+      return (err_a * lb <= tol * k_lo || err_a * B.area * lb <= 0.01 * tol) &&
+             (err_b * la <= tol * k_lo || err_b * A.area * la <= 0.01 * tol);
     };
-    if (!ok(e)) return false;
+    if (!ok(e, e)) return false;
     const VisResult v = link_visibility(A, B, a, b, loc);
-    const double rel = e + v.uncertainty;
-    if (!ok(rel)) return false;
+    const double err = e + v.uncertainty * k_hi;
+    if (!ok(err, err)) return false;
+    const double err_ab = std::min(1.0, err * B.area), err_ba = std::min(1.0, err * A.area);
     check_memory();
-    loc.far.push_back({a, b, float(v.V), float(rel * Fab), float(rel * Fba), float(rel * Fab * lb),
-                       float(rel * Fba * la)});
+    loc.far.push_back({a, b, float(v.V), float(err_ab), float(err_ba), float(err_ab * lb), float(err_ba * la)});
     return true;
   }
 
