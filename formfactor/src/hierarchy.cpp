@@ -226,12 +226,11 @@ class Refiner {
 
   // max over y's corners of n . (q - c_y) (n unit).
   static double support(const HNode& y, const Vec3& n) {
-    if (y.flat) {
-      const double a = n.dot(y.axis);
-      return std::max(a * y.slab_hi, a * y.slab_lo) + (n - a * y.axis).norm() * y.R;
-    }
     const Vec3 ctr = 0.5 * (y.box.lo + y.box.hi), half = 0.5 * (y.box.hi - y.box.lo);
-    return n.dot(ctr - y.c) + n.cwiseAbs().dot(half);
+    const double by_box = n.dot(ctr - y.c) + n.cwiseAbs().dot(half);
+    if (!y.flat) return by_box;
+    const double a = n.dot(y.axis);
+    return std::min(by_box, std::max(a * y.slab_hi, a * y.slab_lo) + (n - a * y.axis).norm() * y.R);
   }
 
   // Every receiver of x sees nothing of y (each patch of y is behind or in the plane of each patch of x).
