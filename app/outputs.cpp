@@ -47,6 +47,12 @@ long long max_patches_in_memory() {
   return static_cast<long long>(std::floor(std::sqrt(0.8 * physical_bytes() / 8.0)));
 }
 
+long long max_patches_in_memory(const CommonOptions& o) {
+  if (o.op == "dense" || o.adaptive_budget > 0) return max_patches_in_memory();
+  const double per_patch = double(formfactor::estimate_hierarchy_bytes(1000000, o.hierarchy.tolerance)) / 1e6;
+  return std::max(max_patches_in_memory(), (long long)(double(formfactor::system_memory_limit().bytes) / per_patch));
+}
+
 void check_adaptive_budget(const CommonOptions& o) {
   if (o.adaptive_budget <= 0) return;
   const long long limit = max_patches_in_memory();

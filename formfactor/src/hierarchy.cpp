@@ -141,7 +141,7 @@ struct FarRecord {
 };
 struct LeafRecord {
   int i, j;
-  double Fij, Fji, err_ij, err_ji;
+  double Fij, Fji, err_ij, err_ji, sig_ij, sig_ji;
 };
 
 struct Local {
@@ -427,16 +427,17 @@ class Refiner {
         const detail::VisibleRatio v =
             detail::visible_ratio(g_, d_.P, *caster_, s, t, o_.rays_per_pair * m * m * m * m, loc.sb);
         loc.rays += v.rays;
-        sigma = 3 * Fst * v.sigma;
+        sigma = Fst * v.sigma;
         Fst *= v.ratio;
       } else {
         ++loc.shaft_clear;
       }
     }
-    const double Fts = Fst * g_.area[s] / g_.area[t], es = e.error + sigma, et = es * g_.area[s] / g_.area[t];
+    const double ratio = g_.area[s] / g_.area[t];
+    const double Fts = Fst * ratio, es = e.error, et = es * ratio, ss = sigma, sst = sigma * ratio;
     check_memory();
     if (Fst > 0)
-      loc.leaf.push_back(swap ? LeafRecord{i, j, Fts, Fst, et, es} : LeafRecord{i, j, Fst, Fts, es, et});
+      loc.leaf.push_back(swap ? LeafRecord{i, j, Fts, Fst, et, es, sst, ss} : LeafRecord{i, j, Fst, Fts, es, et, ss, sst});
   }
 
   const mesh::PatchGeometry& g_;
@@ -588,8 +589,10 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
     {
       std::vector<std::pair<std::int64_t, double>> dir;
       dir.reserve(leaf.size() * 2);
-      std::vector<double> perr(n, 0.0);
+      st.row_visibility_sigma.assign(n, 0.0);
       for (const LeafRecord& r : leaf) {
+        st.row_visibility_sigma[r.i] += r.sig_ij * r.sig_ij;
+        st.row_visibility_sigma[r.j] += r.sig_ji * r.sig_ji;
         dir.push_back({(std::int64_t(r.i) << 32) | std::int64_t(r.j), r.Fij});
         dir.push_back({(std::int64_t(r.j) << 32) | std::int64_t(r.i), r.Fji});
         err[d.leaf_of[r.i]] += r.err_ij;
@@ -612,7 +615,13 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
       err[k] += err[d.nodes[k].parent];
       lerr[k] += lerr[d.nodes[k].parent];
     }
+    for (double& v : st.row_visibility_sigma) {
+      v = std::sqrt(v);
+      st.row_visibility_sigma_max = std::max(st.row_visibility_sigma_max, v);
+    }
+    st.row_error.resize(n);
     for (int p = 0; p < n; ++p) {
+      st.row_error[p] = err[d.leaf_of[p]];
       st.row_error_max = std::max(st.row_error_max, err[d.leaf_of[p]]);
       st.radiance_error_max = std::max(st.radiance_error_max, lerr[d.leaf_of[p]]);
     }

@@ -73,6 +73,11 @@ struct HierarchyStats {
   long long links_shaft_clear = 0, links_ray_tested = 0, rays_cast = 0;
   std::vector<long long> far_links_per_level;  // by the level of the deeper node
   double tolerance = 0, entry_tolerance = 0;
+  std::vector<double> row_error;   // per patch: admitted row error, F units (links' estimates + leaf bounds)
+  // per patch: standard error of the patch-pair entries' ray visibility, combined as independent errors
+  // (as formfactor::Stats::row_visibility_sigma); the cluster links' visibility is in row_error.
+  std::vector<double> row_visibility_sigma;
+  double row_visibility_sigma_max = 0;
   double row_error_max = 0;        // largest admitted row error, F units (sum over the row)
   double radiance_error_max = 0;   // largest admitted radiance error of one gather, relative to L_ref
   double row_sum_min = 0, row_sum_max = 0, row_sum_mean = 0;
