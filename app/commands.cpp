@@ -130,7 +130,7 @@ constexpr int kAutoDenseMaxPatches = 10000;  // dense is faster below (docs/benc
 
 std::string megabytes(std::size_t b) { return fmt::format("{:.0f} MB", double(b) / 1048576.0); }
 
-OperatorChoice choose_operator(const CommonOptions& o, int n) {
+OperatorChoice choose_operator(const CommonOptions& o, int n, double rho_max) {
   const formfactor::MemoryLimit mem = o.ff.max_bytes ? formfactor::MemoryLimit{o.ff.max_bytes, "max_bytes"}
                                                      : formfactor::system_memory_limit();
   const std::size_t dense = formfactor::DenseMatrixOperator::bytes_for(std::size_t(n));
@@ -167,6 +167,11 @@ OperatorChoice choose_operator(const CommonOptions& o, int n) {
                                fixed_rule ? "the fixed rule '" + o.ff_rule + "'" : std::string("adaptive refinement"),
                                megabytes(dense), avail)};
   }
+  // Bright interiors: the hierarchy refines to tolerance (1 - rho)/rho and loses its advantage; dense if it fits.
+  if (rho_max > 0.95 && dense <= mem.bytes / 2)
+    return {false, fmt::format("auto: reflectance up to {:.4g} amplifies the hierarchy's row error {:.0f}-fold; the dense "
+                               "matrix fits ({} of {})",
+                               rho_max, rho_max / (1 - rho_max), megabytes(dense), avail)};
   if (n <= kAutoDenseMaxPatches && dense <= mem.bytes / 2)
     return {false, fmt::format("auto: {} patches <= {}, where the dense matrix is faster and exact to the form-factor "
                                "tolerance; {} of {}",
@@ -387,7 +392,8 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
   if (!r.op_kind.empty()) j["operator"] = {{"kind", r.op_kind}, {"reason", r.op_reason}};
   if (r.hierarchy) {
     const formfactor::HierarchyStats& h = *r.hierarchy;
-    j["hierarchy"] = {{"tolerance", h.tolerance}, {"entry_tolerance", h.entry_tolerance}, {"nodes", h.nodes},
+    j["hierarchy"] = {{"tolerance", h.tolerance}, {"link_tolerance", h.link_tolerance},
+                      {"entry_tolerance", h.entry_tolerance}, {"nodes", h.nodes},
                       {"levels", h.levels}, {"far_links", h.far_links}, {"leaf_links", h.leaf_links},
                       {"far_links_per_level", h.far_links_per_level}, {"pairs_culled", h.pairs_culled},
                       {"links_shaft_clear", h.links_shaft_clear}, {"links_ray_tested", h.links_ray_tested},
@@ -448,14 +454,14 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
       if (h.far_links_per_level[l]) per_level += fmt::format("{}{}:{}", per_level.empty() ? "" : " ", l, h.far_links_per_level[l]);
     s += fmt::format("  hierarchy    {} nodes, {} levels; {} cluster links, {} patch-pair entries ({:.3g}% of the {} "
                      "pairs); {} memory; {} links ray-tested ({} rays), {} proven clear\n"
-                     "  hierarchy    tolerance {:.1e} per link; admitted row error {:.2e} (form factor), {:.2e} "
+                     "  hierarchy    tolerance {:.1e} ({:.1e} per link after the reflectance's amplification); admitted row error {:.2e} (form factor), {:.2e} "
                      "(radiance, relative to the brightest), patch-pair visibility sigma {:.1e}; row sum min/mean/max "
                      "{:.6f} / {:.6f} / {:.6f}\n"
                      "  hierarchy    cluster links per level {}\n",
                      h.nodes, h.levels, h.far_links, h.leaf_links,
                      100.0 * double(h.far_links + h.leaf_links) / double(std::max(1LL, h.dense_pairs_equivalent)),
                      h.dense_pairs_equivalent, megabytes(h.bytes), h.links_ray_tested, h.rays_cast, h.links_shaft_clear,
-                     h.tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
+                     h.tolerance, h.link_tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
                      per_level.empty() ? "-" : per_level);
     if (r.row_check && r.row_check->patches_checked > 0)
       s += fmt::format("  row sums     {} patches against {} rays cast from them: largest difference {:.2e}, {:.2g}x "
@@ -565,7 +571,7 @@ int run_info(const CommonOptions& o) {
 int run_formfactors(const CommonOptions& o) {
   PhaseTimer timer;
   mesh::Scene scene = load(o, timer, /*solving=*/false);
-  const OperatorChoice choice = choose_operator(o, scene.patches());
+  const OperatorChoice choice = choose_operator(o, scene.patches(), max_reflectance(scene.materials));
   formfactor::Stats st;
   formfactor::HierarchyStats hs;
   std::unique_ptr<formfactor::TransportOperator> op;
@@ -711,7 +717,7 @@ int run_solve(const CommonOptions& o) {
   so.method = solver::parse_method(o.method);  // fail on a bad name before any work
   if (o.adaptive_budget > 0) return run_solve_adaptive(o, so, timer);
   mesh::Scene scene = load(o, timer);
-  const OperatorChoice choice = choose_operator(o, scene.patches());
+  const OperatorChoice choice = choose_operator(o, scene.patches(), max_reflectance(scene.materials));
 
   formfactor::Stats st;
   formfactor::HierarchyStats hs;

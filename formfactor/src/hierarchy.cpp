@@ -336,7 +336,7 @@ class Refiner {
     const double k_hi = ca * cb / (kPi * dmin * dmin), k_lo = std::max(ma, 0.0) * std::max(mb, 0.0) / (kPi * dmax * dmax);
     const double e = kExpansionConstant * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
     const double la = std::max(lmax_[a], 0.0) / lref_, lb = std::max(lmax_[b], 0.0) / lref_;
-    const double tol = o_.tolerance;
+    const double tol = link_tol_;
     // Accepted when the error times the source's brightness is within the tolerance relative to the link's
     // smallest value (relative), or is at most 1% of the tolerance (absolute: grazing and distant links).
     auto ok = [&](double err_a, double err_b) {  // errors per unit area of the source
@@ -445,6 +445,11 @@ class Refiner {
   HierarchicalOperator::Impl& d_;
   double etol_;
   std::size_t limit_;
+
+ public:
+  double link_tol_ = 0;
+
+ private:
   std::vector<double> lmax_, cum_;
   std::vector<Box> pbox_;
   double lref_ = 1;
@@ -515,6 +520,8 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
   st.dense_pairs_equivalent = (long long)n * (n - 1) / 2;
   const double etol = o.entry_tolerance > 0 ? o.entry_tolerance : default_tolerance(o.max_reflectance);
   st.entry_tolerance = etol;
+  const double amplification = o.max_reflectance > 0 ? o.max_reflectance / (1 - o.max_reflectance) : 1.0;
+  st.link_tolerance = o.tolerance / std::max(1.0, amplification);
 
   HierarchicalOperator op;
   HierarchicalOperator::Impl& d = *op.d_;
@@ -542,6 +549,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
 
     const auto t_links = Clock::now();
     Refiner rf(g, o, d, etol, sys.bytes);
+    rf.link_tol_ = st.link_tolerance;
     rf.setup(st);
     rf.run();
     // Gather the records, sorted: the stored operator does not depend on the thread count.

@@ -16,7 +16,7 @@
 //     gathers sum_j A_j x_j n_j and its first moment; receivers get n_i . (g - J (c_i - c_A)), so orientation is
 //     per patch, never averaged); accepted when its relative error estimate e = s^2 (10 + 4/m_A + 4/m_B +
 //     1/(m_A m_B)), s = (R_A + R_B)/D, m the smallest cosine of a receiver or source normal with any
-//     direction between the clusters, plus its visibility uncertainty, is <= tolerance * L_ref / Lmax_B
+//     direction between the clusters, plus its visibility uncertainty, is <= link tolerance * L_ref / Lmax_B
 //     (brightness weighting: Lmax_B the brightest patch of B in Options::brightness, L_ref the scene's
 //     brightest); otherwise the larger node is split.
 // Visibility of a far link: 1 when the shaft between the clusters' boxes is proven empty of occluders;
@@ -48,7 +48,9 @@
 namespace lambert::formfactor {
 
 struct HierarchyOptions {
-  // Relative radiance error admitted per link, relative to the scene's brightest patch (the one knob):
+  // The one knob: radiance error admitted per link, relative to the scene's brightest patch, after the solve's
+  // amplification: links are refined to tolerance * min(1, (1 - rho_max) / rho_max) (a row error delta becomes
+  // about rho delta / (1 - rho) on the radiance, docs/physics.md §5), so bright closed interiors refine deeper.
   // > 0 and < 1.
   double tolerance = 1e-3;
   // Per patch: an upper estimate of its radiance (any unit, >= 0), e.g. a previous solve's; empty = all equal
@@ -73,6 +75,7 @@ struct HierarchyStats {
   long long links_shaft_clear = 0, links_ray_tested = 0, rays_cast = 0;
   std::vector<long long> far_links_per_level;  // by the level of the deeper node
   double tolerance = 0, entry_tolerance = 0;
+  double link_tolerance = 0;       // tolerance after the amplification factor (see HierarchyOptions::tolerance)
   std::vector<double> row_error;   // per patch: admitted row error, F units (links' estimates + leaf bounds)
   // per patch: standard error of the patch-pair entries' ray visibility, combined as independent errors
   // (as formfactor::Stats::row_visibility_sigma); the cluster links' visibility is in row_error.
