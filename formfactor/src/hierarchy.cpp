@@ -157,6 +157,7 @@ constexpr double kExpansionConstant = 0.01;
 
 struct VisResult {
   double V = 1, uncertainty = 0;
+  bool refine = false;  // the shaft may be blocked and rays were not worth casting
 };
 
 class Refiner {
@@ -344,7 +345,11 @@ class Refiner {
              (err_b * la <= tol * k_lo || err_b * A.area * la <= 0.01 * tol);
     };
     if (!ok(e, e)) return false;
-    const VisResult v = link_visibility(A, B, a, b, loc);
+    // Rays cannot certify a shaft better than 1/cluster_rays: if even that would fail, refine without casting.
+    const double e_rays = e + k_hi / std::max(1, o_.cluster_rays);
+    const bool rays_could_pass = ok(e_rays, e_rays);
+    const VisResult v = link_visibility(A, B, a, b, loc, rays_could_pass);
+    if (v.refine) return false;
     const double err = e + v.uncertainty * k_hi;
     if (!ok(err, err)) return false;
     const double err_ab = std::min(1.0, err * B.area), err_ba = std::min(1.0, err * A.area);
@@ -355,7 +360,7 @@ class Refiner {
 
   // The visible fraction of a far link: 1 if the shaft between the clusters' boxes is empty of occluders,
   // else a kernel-weighted ray estimate. The one visibility call for clusters (exact visibility may replace it).
-  VisResult link_visibility(const HNode& A, const HNode& B, int a, int b, Local& loc) {
+  VisResult link_visibility(const HNode& A, const HNode& B, int a, int b, Local& loc, bool cast_rays) {
     if (!occlusion_) return {};
     detail::Shaft sh = detail::make_shaft(A.box, B.box);
     sh.ni = A.flat ? A.axis : Vec3::Zero();
@@ -367,6 +372,7 @@ class Refiner {
       ++loc.shaft_clear;
       return {};
     }
+    if (!cast_rays) return {1.0, 1.0, true};
     ++loc.ray_tested;
     const int R = std::max(1, o_.cluster_rays);
     const std::uint64_t seed = detail::mix(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b));
