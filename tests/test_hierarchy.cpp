@@ -125,9 +125,9 @@ HSolve solve_h(const mesh::PatchGeometry& g, double rho, const Eigen::VectorXd& 
 // White furnace: a closed room with a floating block, uniform E0 and rho: L = E0 / (1 - rho) everywhere.
 // Push-pull must neither lose nor create energy beyond the admitted error. Tolerance: the bound above.
 TEST(Hierarchy, ClosedFurnaceStaysAtClosedForm) {
-  const mesh::PatchGeometry g = polys(mesh::shapes::room_with_block(10, 4));
+  const mesh::PatchGeometry g = polys(mesh::shapes::room_with_block(12, 4));
   const double rho = 0.5, E0 = 1;
-  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 1e-3);
+  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 1e-2);
   const double exact = E0 / (1 - rho);
   double worst = 0;
   int at = 0;
@@ -136,7 +136,7 @@ TEST(Hierarchy, ClosedFurnaceStaysAtClosedForm) {
   std::printf("furnace: %lld far links, worst relative error %.2e at %d, bound %.2e\n", r.st.far_links, worst, at, r.bound);
   EXPECT_GT(r.st.far_links, 0) << "no cluster link: the test would not exercise push-pull";
   EXPECT_LE(worst, r.bound) << "patch " << at << " L " << r.L[at] << " exact " << exact;
-  EXPECT_LT(r.bound, 0.02) << "bound too loose to guard anything";
+  EXPECT_LT(r.bound, 0.05) << "bound too loose to guard anything";
 }
 
 // The emitting sphere at rho = 0.999 (convex: no visibility): L = E0 / (1 - rho) = 1000 E0. The solve amplifies
@@ -233,10 +233,10 @@ std::map<std::pair<int, int>, double> read_csv(const std::string& path) {
 
 TEST_F(HierarchyCli, FormfactorsStreamingMatchesDense) {
   const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
-  const auto d = test::run("formfactors " + scene + " --max-edge 0.1 -o " + path("d.csv") + " --operator dense -q");
+  const auto d = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("d.csv") + " --operator dense -q");
   ASSERT_EQ(d.status, 0) << d.output;
-  const auto h = test::run("formfactors " + scene + " --max-edge 0.1 -o " + path("h.csv") +
-                           " --operator hierarchical --hierarchy-tolerance 1e-3 --stats " + path("h.json") + " -q");
+  const auto h = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("h.csv") +
+                           " --operator hierarchical --hierarchy-tolerance 1e-2 --stats " + path("h.json") + " -q");
   ASSERT_EQ(h.status, 0) << h.output;
   const nlohmann::json js = nlohmann::json::parse(std::ifstream(path("h.json")));
   ASSERT_EQ(js["operator"]["kind"], "hierarchical");
@@ -252,12 +252,14 @@ TEST_F(HierarchyCli, FormfactorsStreamingMatchesDense) {
   }
   for (const auto& [k, v] : H)
     if (!D.count(k) && v > worst) worst = v, at = k;
-  std::printf("formfactors: %zu dense entries, %zu hierarchical, worst difference %.2e at (%d, %d), admitted %.2e\n",
-              D.size(), H.size(), worst, at.first, at.second, admitted);
+  std::printf("formfactors: %zu dense entries, %zu hierarchical, worst difference %.2e at (%d, %d), admitted %.2e, "
+              "%lld cluster links\n",
+              D.size(), H.size(), worst, at.first, at.second, admitted, js["hierarchy"]["far_links"].get<long long>());
+  EXPECT_GT(js["hierarchy"]["far_links"].get<long long>(), 100) << "too few cluster links to test the streaming";
   EXPECT_LE(worst, admitted) << "entry (" << at.first << ", " << at.second << ")";
   // --min-factor: only entries >= 0.01, and all of them.
-  const auto m = test::run("formfactors " + scene + " --max-edge 0.1 -o " + path("m.csv") +
-                           " --operator hierarchical --hierarchy-tolerance 1e-3 --min-factor 0.01 -q");
+  const auto m = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("m.csv") +
+                           " --operator hierarchical --hierarchy-tolerance 1e-2 --min-factor 0.01 -q");
   ASSERT_EQ(m.status, 0) << m.output;
   const auto M = read_csv(path("m.csv"));
   for (const auto& [k, v] : M) EXPECT_GE(v, 0.01) << k.first << "," << k.second;
