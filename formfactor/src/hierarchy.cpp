@@ -147,13 +147,14 @@ struct LeafRecord {
 struct Local {
   std::vector<FarRecord> far;
   std::vector<LeafRecord> leaf;
-  long long culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0;
+  long long culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0;
   detail::SampleBuffers sb;
   std::vector<Vec3> pa, pb;
   int hint = -1;
 };
 
 constexpr double kExpansionConstant = 0.01;
+constexpr int kMaxBlockedRays = 1024;
 
 struct VisResult {
   double V = 1, uncertainty = 0;
@@ -347,10 +348,24 @@ class Refiner {
     if (!ok(e, e)) return false;
     // Rays cannot certify a shaft better than 1/cluster_rays: if even that would fail, refine without casting.
     const double e_rays = e + k_hi / std::max(1, o_.cluster_rays);
-    const bool rays_could_pass = ok(e_rays, e_rays);
-    const VisResult v = link_visibility(A, B, a, b, loc, rays_could_pass);
+    // A link every ray finds blocked carries no light; what the rays may have missed (a transmittance up to
+    // about 1/rays) is admitted when, times the source's brightness, it is within the link tolerance.
+    // Up to kMaxBlockedRays rays are cast to certify a blocked pair (stopping at the first visible one).
+    const double need = k_hi * std::max(B.area * lb, A.area * la) / tol;
+    const int max_rays = need <= kMaxBlockedRays ? int(std::ceil(need)) : 0;
+    const bool rays_could_pass = ok(e_rays, e_rays) || max_rays > 0;
+    const VisResult v = link_visibility(A, B, a, b, loc, rays_could_pass, max_rays);
     if (v.refine) return false;
     const double err = e + v.uncertainty * k_hi;
+    const bool blocked = v.V == 0 && v.uncertainty < 0.5;
+    if (blocked) {
+      const double u_rays = v.uncertainty;
+      if (!(k_hi * B.area * u_rays * lb <= tol && k_hi * A.area * u_rays * la <= tol)) return false;
+      const double err_ab = std::min(1.0, k_hi * B.area * u_rays), err_ba = std::min(1.0, k_hi * A.area * u_rays);
+      ++loc.blocked;
+      loc.far.push_back({a, b, 0.0f, float(err_ab), float(err_ba), float(err_ab * lb), float(err_ba * la)});
+      return true;
+    }
     if (!ok(err, err)) return false;
     const double err_ab = std::min(1.0, err * B.area), err_ba = std::min(1.0, err * A.area);
     check_memory();
@@ -360,7 +375,7 @@ class Refiner {
 
   // The visible fraction of a far link: 1 if the shaft between the clusters' boxes is empty of occluders,
   // else a kernel-weighted ray estimate. The one visibility call for clusters (exact visibility may replace it).
-  VisResult link_visibility(const HNode& A, const HNode& B, int a, int b, Local& loc, bool cast_rays) {
+  VisResult link_visibility(const HNode& A, const HNode& B, int a, int b, Local& loc, bool cast_rays, int max_rays) {
     if (!occlusion_) return {};
     detail::Shaft sh = detail::make_shaft(A.box, B.box);
     sh.ni = A.flat ? A.axis : Vec3::Zero();
@@ -374,11 +389,14 @@ class Refiner {
     }
     if (!cast_rays) return {1.0, 1.0, true};
     ++loc.ray_tested;
-    const int R = std::max(1, o_.cluster_rays);
+    const int R0 = std::max(1, o_.cluster_rays);
     const std::uint64_t seed = detail::mix(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b));
     double num = 0, den = 0;
-    int hidden = 0, seen = 0;
-    for (int k = 0; k < R; ++k) {
+    int hidden = 0, seen = 0, cast = 0;
+    // R0 rays; while every ray is blocked and more could certify the blocking (max_rays), continue to max_rays.
+    for (int k = 0; k < std::max(R0, max_rays); ++k) {
+      if (k >= R0 && seen > 0) break;
+      ++cast;
       const std::uint64_t sk = detail::mix(seed + std::uint64_t(k));
       auto pick = [&](const HNode& nd, std::uint64_t h) {
         const double u = cum_[nd.begin] + (double(h >> 11) * 0x1.0p-53) * (cum_[nd.end] - cum_[nd.begin]);
@@ -404,7 +422,7 @@ class Refiner {
     VisResult r;
     if (!(den > 0)) return {1.0, 0.5};
     r.V = num / den;
-    r.uncertainty = (hidden == 0 || seen == 0) ? 1.0 / R : 0.5;
+    r.uncertainty = (hidden == 0 || seen == 0) ? 1.0 / cast : 0.5;
     return r;
   }
 
@@ -568,10 +586,11 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
       st.links_shaft_clear += l.shaft_clear;
       st.links_ray_tested += l.ray_tested;
       st.rays_cast += l.rays;
+      st.links_blocked += l.blocked;
       std::vector<FarRecord>().swap(l.far);
       std::vector<LeafRecord>().swap(l.leaf);
     }
-    st.far_links = (long long)far.size();
+    st.far_links = (long long)far.size() - st.links_blocked;
     st.leaf_links = (long long)leaf.size();
     st.far_links_per_level.assign(size_t(st.levels), 0);
     const int nn = int(d.nodes.size());
@@ -580,13 +599,15 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
       std::vector<std::pair<std::int64_t, std::pair<int, float>>> dir;  // (receiver << 32 | source, vis)
       dir.reserve(far.size() * 2);
       for (const FarRecord& r : far) {
-        dir.push_back({(std::int64_t(r.a) << 32) | std::int64_t(r.b), {r.b, r.vis}});
-        dir.push_back({(std::int64_t(r.b) << 32) | std::int64_t(r.a), {r.a, r.vis}});
+        if (r.vis > 0) {  // blocked links (vis 0) carry nothing: only their admitted error is kept
+          dir.push_back({(std::int64_t(r.a) << 32) | std::int64_t(r.b), {r.b, r.vis}});
+          dir.push_back({(std::int64_t(r.b) << 32) | std::int64_t(r.a), {r.a, r.vis}});
+        }
         err[r.a] += r.err_ab;
         err[r.b] += r.err_ba;
         lerr[r.a] += r.lerr_ab;
         lerr[r.b] += r.lerr_ba;
-        ++st.far_links_per_level[size_t(std::max(d.nodes[r.a].level, d.nodes[r.b].level))];
+        if (r.vis > 0) ++st.far_links_per_level[size_t(std::max(d.nodes[r.a].level, d.nodes[r.b].level))];
       }
       std::vector<FarRecord>().swap(far);
       tbb::parallel_sort(dir.begin(), dir.end(), [](const auto& x, const auto& y) { return x.first < y.first; });

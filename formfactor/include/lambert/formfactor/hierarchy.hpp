@@ -21,7 +21,9 @@
 //     brightest); otherwise the larger node is split.
 // Visibility of a far link: 1 when the shaft between the clusters' boxes is proven empty of occluders;
 // otherwise a kernel-weighted ray estimate (cluster_rays rays between area-sampled points of both clusters),
-// with uncertainty 0.5 when the rays disagree (a shadow edge across the link: split) and 1/rays when they agree.
+// with uncertainty 0.5 when the rays disagree (a shadow edge across the link: split) and 1/rays when they agree;
+// a pair every ray finds blocked stores nothing when F_max / rays times the source's brightness is within the
+// link tolerance (rooms behind walls), its possible transmittance counted in the admitted error.
 // The one visibility call is link_visibility() in src/hierarchy.cpp (rays today; exact visibility can replace it).
 //
 // Error admitted. Each link adds its error estimate times its form-factor bound to its receivers' rows
@@ -73,6 +75,7 @@ struct HierarchyStats {
   long long leaf_links = 0;                 // exact patch-pair entries, unordered, nonzero
   long long pairs_culled = 0;               // node pairs found not to exchange light (no link)
   long long links_shaft_clear = 0, links_ray_tested = 0, rays_cast = 0;
+  long long links_blocked = 0;              // cluster pairs every ray found blocked: no link stored, error admitted
   std::vector<long long> far_links_per_level;  // by the level of the deeper node
   double tolerance = 0, entry_tolerance = 0;
   double link_tolerance = 0;       // tolerance after the amplification factor (see HierarchyOptions::tolerance)
