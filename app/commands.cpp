@@ -217,8 +217,8 @@ formfactor::Stats stats_of(const formfactor::HierarchyStats& h, const formfactor
   st.rays_per_pair = o.rays_per_pair;
   st.patches = h.patches;
   st.pairs_total = h.dense_pairs_equivalent;
-  st.pairs_ray_tested = h.links_ray_tested;
-  st.pairs_shaft_culled = h.links_shaft_clear;
+  st.pairs_ray_tested = h.pairs_ray_tested;
+  st.pairs_shaft_culled = h.pairs_shaft_clear;
   st.pairs_orientation_culled = h.pairs_culled;
   st.rays_cast = h.rays_cast;
   st.row_sum_min = h.row_sum_min;
@@ -397,7 +397,8 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                       {"levels", h.levels}, {"far_links", h.far_links}, {"leaf_links", h.leaf_links},
                       {"far_links_per_level", h.far_links_per_level}, {"pairs_culled", h.pairs_culled},
                       {"links_shaft_clear", h.links_shaft_clear}, {"links_ray_tested", h.links_ray_tested},
-                      {"links_blocked", h.links_blocked},
+                      {"links_blocked", h.links_blocked}, {"pairs_ray_tested", h.pairs_ray_tested},
+                      {"pairs_shaft_clear", h.pairs_shaft_clear},
                       {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
                       {"radiance_error_max", h.radiance_error_max},
                       {"row_visibility_sigma_max", h.row_visibility_sigma_max}, {"bytes", h.bytes},
@@ -454,14 +455,16 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
     for (size_t l = 0; l < h.far_links_per_level.size(); ++l)
       if (h.far_links_per_level[l]) per_level += fmt::format("{}{}:{}", per_level.empty() ? "" : " ", l, h.far_links_per_level[l]);
     s += fmt::format("  hierarchy    {} nodes, {} levels; {} cluster links, {} patch-pair entries ({:.3g}% of the {} "
-                     "pairs); {} memory; {} links ray-tested ({} rays), {} proven clear, {} found blocked\n"
+                     "pairs); {} memory; visibility: cluster pairs {} ray-tested, {} proven clear, {} found blocked; "
+                     "patch pairs {} ray-tested, {} proven clear; {} rays\n"
                      "  hierarchy    tolerance {:.1e} ({:.1e} per link after the reflectance's amplification); admitted row error {:.2e} (form factor), {:.2e} "
                      "(radiance, relative to the brightest), patch-pair visibility sigma {:.1e}; row sum min/mean/max "
                      "{:.6f} / {:.6f} / {:.6f}\n"
                      "  hierarchy    cluster links per level {}\n",
                      h.nodes, h.levels, h.far_links, h.leaf_links,
                      100.0 * double(h.far_links + h.leaf_links) / double(std::max(1LL, h.dense_pairs_equivalent)),
-                     h.dense_pairs_equivalent, megabytes(h.bytes), h.links_ray_tested, h.rays_cast, h.links_shaft_clear, h.links_blocked,
+                     h.dense_pairs_equivalent, megabytes(h.bytes), h.links_ray_tested, h.links_shaft_clear, h.links_blocked, h.pairs_ray_tested,
+                     h.pairs_shaft_clear, h.rays_cast,
                      h.tolerance, h.link_tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
                      per_level.empty() ? "-" : per_level);
     if (r.row_check && r.row_check->patches_checked > 0)

@@ -284,6 +284,13 @@ TEST_F(HierarchyCli, OperatorChoicePrintedAndUnsupportedCombinationsRefused) {
   EXPECT_NE(c.output.find("does not store"), std::string::npos) << c.output;
   const auto d = test::run("solve " + scene + " -o " + path("d.vtu") + " --operator sparse");
   EXPECT_EQ(d.status, 1) << d.output;
+  // Too many patches for the memory available: refused before refining, with the patch count that fits.
+  for (const char* op : {"dense", "hierarchical"}) {
+    const auto e = test::run("solve " + scene + " -o " + path("e.vtu") + " --max-edge 0.0003 --operator " + op);
+    EXPECT_EQ(e.status, 1) << op << ": " << e.output;
+    EXPECT_NE(e.output.find("fit in memory"), std::string::npos) << op << ": " << e.output;
+    EXPECT_NE(e.output.find("use a larger --max-edge"), std::string::npos) << op << ": " << e.output;
+  }
 }
 
 }  // namespace lambert::formfactor

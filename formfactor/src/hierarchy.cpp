@@ -147,14 +147,14 @@ struct LeafRecord {
 struct Local {
   std::vector<FarRecord> far;
   std::vector<LeafRecord> leaf;
-  long long culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0;
+  long long culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
   detail::SampleBuffers sb;
   std::vector<Vec3> pa, pb;
   int hint = -1;
 };
 
 constexpr double kExpansionConstant = 0.01;
-constexpr int kMaxBlockedRays = 1024;
+constexpr int kMaxBlockedRays = 256;
 
 struct VisResult {
   double V = 1, uncertainty = 0;
@@ -445,7 +445,7 @@ class Refiner {
       sh.oj = d_.P.offset[t];
       sh.eps = d_.P.scene_eps;
       if (tree_.may_block(sh, s, t, &loc.hint)) {
-        ++loc.ray_tested;
+        ++loc.pair_ray_tested;
         const double share = std::max(Fst, Fst * g_.area[s] / g_.area[t]);
         const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
         const detail::VisibleRatio v =
@@ -454,7 +454,7 @@ class Refiner {
         sigma = Fst * v.sigma;
         Fst *= v.ratio;
       } else {
-        ++loc.shaft_clear;
+        ++loc.pair_shaft_clear;
       }
     }
     const double ratio = g_.area[s] / g_.area[t];
@@ -587,6 +587,8 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
       st.links_ray_tested += l.ray_tested;
       st.rays_cast += l.rays;
       st.links_blocked += l.blocked;
+      st.pairs_ray_tested += l.pair_ray_tested;
+      st.pairs_shaft_clear += l.pair_shaft_clear;
       std::vector<FarRecord>().swap(l.far);
       std::vector<LeafRecord>().swap(l.leaf);
     }

@@ -74,7 +74,8 @@ struct HierarchyStats {
   long long far_links = 0;                  // cluster (or patch-cluster) links, unordered
   long long leaf_links = 0;                 // exact patch-pair entries, unordered, nonzero
   long long pairs_culled = 0;               // node pairs found not to exchange light (no link)
-  long long links_shaft_clear = 0, links_ray_tested = 0, rays_cast = 0;
+  long long links_shaft_clear = 0, links_ray_tested = 0, rays_cast = 0;  // cluster pairs tested for a link
+  long long pairs_ray_tested = 0, pairs_shaft_clear = 0;  // patch pairs: visibility by rays / proven clear
   long long links_blocked = 0;              // cluster pairs every ray found blocked: no link stored, error admitted
   std::vector<long long> far_links_per_level;  // by the level of the deeper node
   double tolerance = 0, entry_tolerance = 0;
