@@ -49,8 +49,14 @@ long long max_patches_in_memory() {
 
 long long max_patches_in_memory(const CommonOptions& o) {
   if (o.op == "dense" || o.adaptive_budget > 0) return max_patches_in_memory();
-  const double per_patch = double(formfactor::estimate_hierarchy_bytes(1000000, o.hierarchy.tolerance)) / 1e6;
-  return std::max(max_patches_in_memory(), (long long)(double(formfactor::system_memory_limit().bytes) / per_patch));
+  // The largest n whose estimate fits (the estimate grows monotonically with n): bisection.
+  const std::size_t limit = formfactor::system_memory_limit().bytes;
+  long long lo = 1, hi = 1LL << 31;
+  while (hi - lo > 1) {
+    const long long mid = lo + (hi - lo) / 2;
+    (formfactor::estimate_hierarchy_bytes(std::size_t(mid), o.hierarchy.tolerance) <= limit ? lo : hi) = mid;
+  }
+  return std::max(max_patches_in_memory(), lo);
 }
 
 void check_adaptive_budget(const CommonOptions& o) {

@@ -183,7 +183,7 @@ TEST(Hierarchy, DeterministicForAnyThreadCount) {
 TEST(Hierarchy, RefusesWhenEstimateExceedsMemory) {
   const mesh::PatchGeometry g = polys(mesh::shapes::box(Vec3::Zero(), Vec3::Ones(), 20, true));
   HierarchyOptions ho;
-  ho.max_bytes = 1 << 20;  // 1 MB for 2,400 patches (estimate ~10 MB)
+  ho.max_bytes = 1 << 20;  // 1 MB for 2,400 patches (estimate ~125 MB)
   try {
     build_hierarchy(g, ho);
     FAIL() << "no refusal";

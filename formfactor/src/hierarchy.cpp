@@ -503,12 +503,13 @@ std::size_t HierarchicalOperator::Impl::bytes() const {
 }
 
 std::size_t estimate_hierarchy_bytes(std::size_t n, double tolerance) {
-  // Per patch: geometry copies and outer rules (~1.1 kB), two tree nodes (~0.4 kB), and links: measured
-  // ~60 far links and ~25 leaf entries per patch at tolerance 1e-3 (docs/benchmarks.md), growing like
-  // tolerance^-1/2; 16 B per far link and 24 B per leaf entry stored, ~56 B per link while building.
-  const double scale = std::sqrt(1e-3 / std::clamp(tolerance, 1e-9, 0.5));
-  const double per_patch = 1500 + scale * 85 * 56;
-  return std::size_t(double(n) * per_patch);
+  // Peak process memory measured on the lit cube at tolerance 1e-3 (docs/benchmarks.md, "Scaling"): 259 MB at
+  // 10k patches, 976 MB at 100k, 4.5 GB at 1M, a log-log slope of 0.62 (the links per patch fall as clusters
+  // grow); scaled by (1e-3 / tolerance)^0.3 (links grow as the tolerance shrinks). Occluded scenes need more (the
+  // 10k-patch building: 540 MB); the build checks its links against the limit while it runs.
+  if (n == 0) return 0;
+  const double mb = 300.0 * std::pow(double(n) / 1e4, 0.62) * std::pow(1e-3 / std::clamp(tolerance, 1e-9, 0.5), 0.3);
+  return std::size_t(mb * 1048576.0);
 }
 
 HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const HierarchyOptions& o, HierarchyStats* stats) {

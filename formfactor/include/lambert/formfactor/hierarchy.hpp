@@ -126,7 +126,8 @@ class HierarchicalOperator final : public TransportOperator {
 HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& geometry, const HierarchyOptions& options = {},
                                      HierarchyStats* stats = nullptr);
 
-// Bytes a hierarchy of n patches is expected to need (tree + links at the default tolerance; an estimate).
+// Peak bytes a hierarchical build of n patches is expected to need at this tolerance (fitted to measurements,
+// docs/benchmarks.md; occluded scenes may need up to 2x: the build also checks its links while it runs).
 std::size_t estimate_hierarchy_bytes(std::size_t n, double tolerance);
 
 // Memory this process may use: the smallest of the cgroup limit (/sys/fs/cgroup/memory.max, or v1's
