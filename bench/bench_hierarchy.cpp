@@ -2,7 +2,9 @@
 //   cube N     closed unit cube, N x N quads per face (inward), rho = 0.5, the top face (+z) emits Le = 1
 //   obj PATH   an OBJ scene (materials from its MTL), e.g. ../shared/models/udales_shape.obj, closed by a
 //              large emitting sky box (Le = 1, rho = 0) around it when --sky is given
-// Usage: bench_hierarchy [--dense] [--tolerance T] [--threads K] cube N | obj PATH [--sky]
+// Usage: bench_hierarchy [--dense] [--two-pass] [--tolerance T] [--threads K] cube N | obj PATH [--sky]
+// --two-pass: brightness for the refinement from a first solve at 10x the tolerance (an experiment; the CLI
+// uses the a-priori bound Le + rho max Le / (1 - rho_max)).
 // The dense reference (--dense) is assembled at the default tolerance and solved to 1e-10; the error is
 // max_i |L_h - L_d| / max L_d. Peak memory: VmHWM of the process after each phase (the dense run, if any,
 // last, so the hierarchical figure is not inflated by it).
@@ -94,13 +96,14 @@ Problem obj(const std::string& path, bool sky) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool dense = false, sky = false;
+  bool dense = false, sky = false, two_pass = false;
   double tol = 1e-3;
   int threads = 0;
   std::string kind, arg;
   for (int k = 1; k < argc; ++k) {
     if (!std::strcmp(argv[k], "--dense")) dense = true;
     else if (!std::strcmp(argv[k], "--sky")) sky = true;
+    else if (!std::strcmp(argv[k], "--two-pass")) two_pass = true;
     else if (!std::strcmp(argv[k], "--tolerance") && k + 1 < argc) tol = std::atof(argv[++k]);
     else if (!std::strcmp(argv[k], "--threads") && k + 1 < argc) threads = std::atoi(argv[++k]);
     else if (kind.empty()) kind = argv[k];
@@ -124,6 +127,21 @@ int main(int argc, char** argv) {
   ho.tolerance = tol;
   ho.max_reflectance = rho_max;
   formfactor::HierarchyStats hs;
+  if (two_pass) {
+    // Brightness from a first solve at 10x the tolerance: links from what turned out dark are accepted coarser.
+    formfactor::HierarchyOptions h1 = ho;
+    h1.tolerance = std::min(0.1, 10 * tol);
+    formfactor::HierarchyStats s1;
+    const formfactor::HierarchicalOperator H1 = formfactor::build_hierarchy(p.g, h1, &s1);
+    solver::Options o1;
+    o1.tolerance = 1e-6;
+    const solver::Solution L1 = solver::solve(H1, p.g.area, p.rho, p.Le, o1);
+    const double lmax = L1.radiance.maxCoeff();
+    ho.brightness.resize(N);
+    for (int i = 0; i < N; ++i)
+      ho.brightness[i] = L1.radiance.row(i).maxCoeff() + 10 * s1.radiance_error_max * lmax;
+    std::printf("pass 1: %.2f s, %lld cluster links, %lld patch pairs\n", since(t0), s1.far_links, s1.leaf_links);
+  }
   auto H = std::make_shared<formfactor::HierarchicalOperator>(formfactor::build_hierarchy(p.g, ho, &hs));
   const double t_build = since(t0);
   t0 = Clock::now();
