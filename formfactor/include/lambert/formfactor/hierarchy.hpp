@@ -10,15 +10,17 @@
 //   - no exchange (every receiver of A faces away from B, or the reverse, by normal cones or flat slabs): nothing;
 //   - both leaves: the patch pair's exact entry F_ij, F_ji (the dense kernel: tiers or adaptive contour, to the
 //     per-entry form-factor tolerance) times the visible fraction (Visibility rays, as assembled densely);
-//   - A and B facing each other in every direction between them (cone test with the angle the clusters
-//     subtend) and far enough apart: a far link, the first-order expansion of the point kernel
-//     k = (n_i.u)(-n_j.u) / (pi |u|^4), u = q - p, about both centres ("vector radiosity": each cluster
-//     gathers sum_j A_j x_j n_j and its first moment; receivers get n_i . (g - J (c_i - c_A)), so orientation is
-//     per patch, never averaged); accepted when its relative error estimate e = s^2 (10 + 4/m_A + 4/m_B +
-//     1/(m_A m_B)), s = (R_A + R_B)/D, m the smallest cosine of a receiver or source normal with any
-//     direction between the clusters, plus its visibility uncertainty, is <= link tolerance * L_ref / Lmax_B
-//     (brightness weighting: Lmax_B the brightest patch of B in Options::brightness, L_ref the scene's
-//     brightest); otherwise the larger node is split.
+//   - every receiver of A facing every point of B and vice versa (normal cones widened by the angle the clusters
+//     subtend, or a flat cluster with the other on or in front of its plane) and s = (R_A + R_B)/D < 0.5: a far
+//     link, the first-order expansion of the point kernel k = (n_i.u)(-n_j.u) / (pi |u|^4), u = q - p, about
+//     both centres ("vector radiosity": each cluster gathers sum_j A_j x_j n_j and its first moment; receivers
+//     get n_i . (g - J (c_i - c_A)), so orientation is per patch, never averaged). Its error per receiver and
+//     unit source area is estimated as 0.01 s^2 (10 c_A c_B + 4 c_A + 4 c_B + 1) / (pi d_min^2) (c the largest
+//     cosines, d_min = D - R_A - R_B; the pointwise second-order remainder, times a constant calibrated on the
+//     tests, docs/physics.md §9). Accepted when that error plus the visibility uncertainty, times the source's
+//     brightness (Lmax_B / L_ref: Options::brightness, relative to the brightest), is within the link tolerance
+//     relative to the link's smallest value, or below 1% of the link tolerance in absolute terms; otherwise
+//     the larger node is split. Link tolerance: Options::tolerance x min(1, (1 - rho_max) / rho_max).
 // Visibility of a far link: 1 when the shaft between the clusters' boxes is proven empty of occluders;
 // otherwise a kernel-weighted ray estimate (cluster_rays rays between area-sampled points of both clusters),
 // with uncertainty 0.5 when the rays disagree (a shadow edge across the link: split) and 1/rays when they agree;
@@ -26,10 +28,10 @@
 // link tolerance (rooms behind walls), its possible transmittance counted in the admitted error.
 // The one visibility call is link_visibility() in src/hierarchy.cpp (rays today; exact visibility can replace it).
 //
-// Error admitted. Each link adds its error estimate times its form-factor bound to its receivers' rows
-// (pushed down the tree): Stats::row_error_max is the largest admitted row error in F units (a sum over the
-// row), Stats::radiance_error_max the largest in radiance units (times Lmax_B, relative to L_ref). The solve
-// amplifies a row error delta to about rho delta / (1 - rho) (docs/physics.md §5).
+// Error admitted. Each link adds its error estimate (F units) to its receivers' rows (pushed down the tree),
+// the patch pairs their integration bounds: HierarchyStats::row_error[_max]; ::radiance_error_max the same
+// weighted by the sources' brightness, relative to L_ref; ::row_visibility_sigma the patch pairs' ray error.
+// The solve amplifies a row error delta to about rho delta / (1 - rho) (docs/physics.md §5).
 //
 // apply() is deterministic and independent of the thread count: links are stored sorted per receiver and
 // each receiver sums its own links in that order.
