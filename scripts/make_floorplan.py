@@ -39,8 +39,10 @@ Usage:
   scripts/make_floorplan.py --building FACES [--storeys S] [--out DIR]
                                                   write building.obj + .mtl: storeys x wings of the plan,
                                                   about FACES faces (scaling benchmarks)
-  scripts/make_floorplan.py --check SOLUTION.vtu  per-room radiance of a `lambert solve` result
-                                                  (exit 1 if the shut room is lit or a lit room dark)
+  scripts/make_floorplan.py --check SOLUTION.vtu [--obj OBJ]
+                                                  per-room radiance of a `lambert solve` result (exit 1 if
+                                                  the shut room is lit or a lit room dark); for a building
+                                                  (--obj building.obj) the rooms of every copy together
 """
 import argparse
 import math
@@ -460,7 +462,10 @@ def check(vtu, obj):
     rooms = {}
     for rad, irr, em, (fid,), (area,) in zip(cells["radiance"], cells["irradiance"], cells["emission"],
                                              cells["face_id"], cells["area"]):
-        room = groups[fid].split("/")[0]
+        parts = groups[fid].split("/")
+        if len(parts) > 2 and parts[0][:1] == "s" and "w" in parts[0]:  # building: sSwW/ROOM/OBJECT
+            parts = parts[1:]
+        room = parts[0]
         if room == "door":
             room = "doors"
         s = rooms.setdefault(room, {"patches": 0, "area": 0.0, "L_area": 0.0, "L_max": 0.0, "H_max": 0.0})
