@@ -36,16 +36,54 @@ double HierarchicalOperator::row_sum(int i) const { return d_->row_sums.empty() 
 
 namespace {
 
-// Gather of one far link into the receiver's (g, J), given the source's moments (V, W) and u = c_B - c_A:
-// sum_j K(u + b_j - a) A_j x_j n_j ~ K V + sum_k d_k K W(:, k) - J a, with K(u) = -u u^T / (pi |u|^4).
-inline void gather(const Vec3& u, double vis, const Vec3& V, const Mat3& W, Vec3& g, Mat3& J) {
-  const double r2 = u.squaredNorm(), i4 = 1 / (kPi * r2 * r2), i6 = i4 / r2;
+using Mat36 = Eigen::Matrix<double, 3, 6>;  // a vector per symmetric index pair kl: xx yy zz xy xz yz
+constexpr int kKL[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
+constexpr int kK[6] = {0, 1, 2, 0, 0, 1}, kL[6] = {0, 1, 2, 1, 2, 2};
+constexpr double kMult[6] = {1, 1, 1, 2, 2, 2};  // sum over k, l of a symmetric form = sum over kl of mult x
+
+// Gather of one far link into the receiver's (g, J, H), given the source's moments about its centre
+// (V = sum A x n, W = sum A x n b^T, T(:, kl) = sum A x n b_k b_l) and u = c_B - c_A: the second-order Taylor
+// expansion of sum_j K(u + b_j - a) A_j x_j n_j in b and a, K(u) = -u u^T / (pi |u|^4):
+//   g = K V + sum_k d_k K W(:,k) + 1/2 sum_kl d_k d_l K T(:,kl),   (a-independent part)
+//   G(a) = g - J a + 1/2 H[a, a],  J(:,l) = d_l K V + sum_k d_k d_l K W(:,k),  H_kl = d_k d_l K V.
+// With phi = 1/(pi r^4), dphi = -4 phi u / r^2 and S_kl = d_k d_l phi = -4 phi (delta_kl / r^2 - 6 u_k u_l / r^4):
+//   d_k (K v) = -dphi_k (u.v) u - phi (v_k u + (u.v) e_k)
+//   d_k d_l (K v) = -S_kl (u.v) u - dphi_k (v_l u + (u.v) e_l) - dphi_l (v_k u + (u.v) e_k) - phi (v_k e_l + v_l e_k).
+inline void gather(const Vec3& u, double vis, const Vec3& V, const Mat3& W, const Mat36& T, Vec3& g, Mat3& J,
+                   Mat36& H) {
+  const double r2 = u.squaredNorm(), phi = 1 / (kPi * r2 * r2);
+  const Vec3 dphi = (-4 * phi / r2) * u;
   const double uV = u.dot(V);
+  const Eigen::Matrix3d S = (-4 * phi / r2) * Mat3::Identity() + (24 * phi / (r2 * r2)) * (u * u.transpose());
+  // First order (as before): K V + sum_k d_k K W(:,k).
   const Vec3 Wtu = W.transpose() * u;
-  const double uWu = u.dot(W * u), tr = W.trace();
-  g += vis * (-uV * i4 * u + (-Wtu - tr * u) * i4 + 4 * uWu * i6 * u);
-  // J = -(u.V) I / (pi r^4) - u V^T / (pi r^4) + 4 (u.V) u u^T / (pi r^6)
-  J += vis * (-uV * i4 * Mat3::Identity() - i4 * u * V.transpose() + 4 * uV * i6 * u * u.transpose());
+  const double tr = W.trace();
+  // K V + sum_k d_k K W(:,k) = -phi (u.V) u + sum_k [-dphi_k (u.w_k) u - phi (w_kk u + (u.w_k) e_k)]
+  Vec3 gl = -phi * uV * u - dphi.dot(Wtu) * u - phi * (tr * u + Wtu);
+  // Second order, source: 1/2 sum_kl T(:,kl) through d_k d_l K: with P_kl = u . T(:,kl) and q_l = sum_k T(k, kl),
+  // sum_mkl T_mkl d_k d_l (K e_m) = -(S : P) u - 2 (dphi . q) u - 2 P dphi - 2 phi q.
+  Eigen::Matrix3d P;
+  for (int kl = 0; kl < 6; ++kl) P(kK[kl], kL[kl]) = P(kL[kl], kK[kl]) = u.dot(T.col(kl));
+  Vec3 q;
+  for (int l = 0; l < 3; ++l) q[l] = T(0, kKL[0][l]) + T(1, kKL[1][l]) + T(2, kKL[2][l]);
+  const double SP = (S.cwiseProduct(P)).sum();
+  gl += 0.5 * (-SP * u - 2 * dphi.dot(q) * u - 2 * (P * dphi) - 2 * phi * q);
+  g += vis * gl;
+  // J: first order d_l K V, column l = -dphi_l (u.V) u - phi (V_l u + (u.V) e_l).
+  Mat3 Jl = -uV * u * dphi.transpose() - phi * u * V.transpose() - phi * uV * Mat3::Identity();
+  // second order sum_k d_k d_l K W(:,k), column l:
+  //   -(S W^T u)_l u - (W dphi)_l u - (u^T W dphi) e_l - dphi_l tr(W) u - phi tr(W) e_l - dphi_l W^T u - phi W(l,:)^T
+  Jl += -u * (S * Wtu).transpose() - u * (W * dphi).transpose() - u.dot(W * dphi) * Mat3::Identity() -
+        tr * u * dphi.transpose() - phi * tr * Mat3::Identity() - Wtu * dphi.transpose() - phi * W.transpose();
+  J += vis * Jl;
+  // H_kl = d_k d_l K V.
+  for (int kl = 0; kl < 6; ++kl) {
+    const int k = kK[kl], l = kL[kl];
+    Vec3 h = -S(k, l) * uV * u - dphi[k] * V[l] * u - dphi[l] * V[k] * u - phi * (V[k] * Vec3::Unit(l) + V[l] * Vec3::Unit(k));
+    h[l] -= dphi[k] * uV;
+    h[k] -= dphi[l] * uV;
+    H.col(kl) += vis * h;
+  }
 }
 
 }  // namespace
@@ -55,50 +93,79 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   const int n = d.n, nn = int(d.nodes.size());
   if (n == 0) return;
   const mesh::PatchGeometry& g = *d.g;
-  // Pull: per node V = sum A x n, W = sum A x n (c_p - c_node)^T (children after parents: reverse order).
+  const detail::PatchData& P = d.P;
+  // Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, b = point - node centre (each
+  // patch's own second moments included); children after parents: reverse order.
   std::vector<Vec3> V(nn);
   std::vector<Mat3> W(nn);
+  std::vector<Mat36> T(nn);
   for (int k = nn - 1; k >= 0; --k) {
     const HNode& nd = d.nodes[k];
     if (nd.leaf()) {
       const int p = d.perm[nd.begin];
       V[k] = g.area[p] * x[p] * g.normal[p];
       W[k].setZero();
+      for (int kl = 0; kl < 6; ++kl) T[k].col(kl) = V[k] * P.M[p][kl];
     } else {
-      const int a = nd.left, b = nd.right;
-      V[k] = V[a] + V[b];
-      W[k] = W[a] + V[a] * (d.nodes[a].c - nd.c).transpose() + W[b] + V[b] * (d.nodes[b].c - nd.c).transpose();
+      T[k].setZero();
+      W[k].setZero();
+      V[k].setZero();
+      for (const int c : {nd.left, nd.right}) {
+        const Vec3 dl = d.nodes[c].c - nd.c;
+        V[k] += V[c];
+        W[k] += W[c] + V[c] * dl.transpose();
+        for (int kl = 0; kl < 6; ++kl) {
+          const int a = kK[kl], b = kL[kl];
+          T[k].col(kl) += T[c].col(kl) + W[c].col(a) * dl[b] + W[c].col(b) * dl[a] + V[c] * (dl[a] * dl[b]);
+        }
+      }
     }
   }
   // Gather: each receiver node sums its own links in stored order (deterministic for any thread count).
   std::vector<Vec3> G(nn, Vec3::Zero());
   std::vector<Mat3> J(nn, Mat3::Zero());
+  std::vector<Mat36> H(nn, Mat36::Zero());
   tbb::parallel_for(tbb::blocked_range<int>(0, nn, 256), [&](const tbb::blocked_range<int>& r) {
     for (int k = r.begin(); k < r.end(); ++k) {
       const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
       if (e0 == e1) continue;
       Vec3 gk = Vec3::Zero();
       Mat3 Jk = Mat3::Zero();
+      Mat36 Hk = Mat36::Zero();
       const Vec3& ca = d.nodes[k].c;
       for (std::int64_t e = e0; e < e1; ++e) {
         const int b = d.far_src[e];
-        gather(d.nodes[b].c - ca, double(d.far_vis[e]), V[b], W[b], gk, Jk);
+        gather(d.nodes[b].c - ca, double(d.far_vis[e]), V[b], W[b], T[b], gk, Jk, Hk);
       }
       G[k] = gk;
       J[k] = Jk;
+      H[k] = Hk;
     }
   });
-  // Push: a child at offset a from its parent's centre receives g - J a and J.
+  // Push: a child at offset a from its parent's centre receives g - J a + H[a,a]/2, J - H[a,.] and H.
   for (int k = 1; k < nn; ++k) {
     const HNode& nd = d.nodes[k];
     const int p = nd.parent;
-    G[k] += G[p] - J[p] * (nd.c - d.nodes[p].c);
-    J[k] += J[p];
+    const Vec3 a = nd.c - d.nodes[p].c;
+    Vec3 Haa = Vec3::Zero();
+    Mat3 Ha = Mat3::Zero();  // column l: sum_k H_kl a_k
+    for (int kl = 0; kl < 6; ++kl) {
+      const int kk = kK[kl], ll = kL[kl];
+      Haa += kMult[kl] * a[kk] * a[ll] * H[p].col(kl);
+      Ha.col(ll) += a[kk] * H[p].col(kl);
+      if (kk != ll) Ha.col(kk) += a[ll] * H[p].col(kl);
+    }
+    G[k] += G[p] - J[p] * a + 0.5 * Haa;
+    J[k] += J[p] - Ha;
+    H[k] += H[p];
   }
-  // Leaves: n_i . g plus the exact entries.
+  // Leaves: n_i . (g + H : M_i / 2) (the patch's own extent) plus the exact entries.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
-      double s = g.normal[i].dot(G[d.leaf_of[i]]);
+      const int k = d.leaf_of[i];
+      Vec3 gi = G[k];
+      for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kMult[kl] * P.M[i][kl] * H[k].col(kl);
+      double s = g.normal[i].dot(gi);
       for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) s += d.leaf_F[e] * x[d.leaf_src[e]];
       y[i] = s;
     }
