@@ -153,7 +153,7 @@ struct Local {
   int hint = -1;
 };
 
-constexpr double kExpansionConstant = 0.01;
+constexpr double kExpansionConstant = 0.005;
 constexpr int kMaxBlockedRays = 256;
 
 struct VisResult {
@@ -336,7 +336,7 @@ class Refiner {
     // below 1/5 of the admitted one).
     const double dmin = D - A.R - B.R, dmax = D + A.R + B.R;
     const double k_hi = ca * cb / (kPi * dmin * dmin), k_lo = std::max(ma, 0.0) * std::max(mb, 0.0) / (kPi * dmax * dmax);
-    const double e = kExpansionConstant * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
+    const double e = kExpansionConstant * s * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
     const double la = std::max(lmax_[a], 0.0) / lref_, lb = std::max(lmax_[b], 0.0) / lref_;
     const double tol = link_tol_;
     // Accepted when the error times the source's brightness is within the tolerance relative to the link's
