@@ -51,38 +51,43 @@ constexpr double kMult[6] = {1, 1, 1, 2, 2, 2};  // sum over k, l of a symmetric
 //   d_k d_l (K v) = -S_kl (u.v) u - dphi_k (v_l u + (u.v) e_l) - dphi_l (v_k u + (u.v) e_k) - phi (v_k e_l + v_l e_k).
 inline void gather(const Vec3& u, double vis, const Vec3& V, const Mat3& W, const Mat36& T, Vec3& g, Mat3& J,
                    Mat36& H) {
-  const double r2 = u.squaredNorm(), phi = 1 / (kPi * r2 * r2);
-  const Vec3 dphi = (-4 * phi / r2) * u;
+  // Written out (no Eigen temporaries): this is the inner loop of every product F x.
+  const double r2 = u.squaredNorm(), phi = 1 / (kPi * r2 * r2), c4 = -4 * phi / r2, c24 = 24 * phi / (r2 * r2);
+  const Vec3 dphi = c4 * u;  // grad phi
   const double uV = u.dot(V);
-  const Eigen::Matrix3d S = (-4 * phi / r2) * Mat3::Identity() + (24 * phi / (r2 * r2)) * (u * u.transpose());
-  // First order (as before): K V + sum_k d_k K W(:,k).
   const Vec3 Wtu = W.transpose() * u;
+  const Vec3 Wdphi = W * dphi;
   const double tr = W.trace();
-  // K V + sum_k d_k K W(:,k) = -phi (u.V) u + sum_k [-dphi_k (u.w_k) u - phi (w_kk u + (u.w_k) e_k)]
-  Vec3 gl = -phi * uV * u - dphi.dot(Wtu) * u - phi * (tr * u + Wtu);
-  // Second order, source: 1/2 sum_kl T(:,kl) through d_k d_l K: with P_kl = u . T(:,kl) and q_l = sum_k T(k, kl),
-  // sum_mkl T_mkl d_k d_l (K e_m) = -(S : P) u - 2 (dphi . q) u - 2 P dphi - 2 phi q.
-  Eigen::Matrix3d P;
-  for (int kl = 0; kl < 6; ++kl) P(kK[kl], kL[kl]) = P(kL[kl], kK[kl]) = u.dot(T.col(kl));
-  Vec3 q;
-  for (int l = 0; l < 3; ++l) q[l] = T(0, kKL[0][l]) + T(1, kKL[1][l]) + T(2, kKL[2][l]);
-  const double SP = (S.cwiseProduct(P)).sum();
-  gl += 0.5 * (-SP * u - 2 * dphi.dot(q) * u - 2 * (P * dphi) - 2 * phi * q);
-  g += vis * gl;
-  // J: first order d_l K V, column l = -dphi_l (u.V) u - phi (V_l u + (u.V) e_l).
-  Mat3 Jl = -uV * u * dphi.transpose() - phi * u * V.transpose() - phi * uV * Mat3::Identity();
-  // second order sum_k d_k d_l K W(:,k), column l:
-  //   -(S W^T u)_l u - (W dphi)_l u - (u^T W dphi) e_l - dphi_l tr(W) u - phi tr(W) e_l - dphi_l W^T u - phi W(l,:)^T
-  Jl += -u * (S * Wtu).transpose() - u * (W * dphi).transpose() - u.dot(W * dphi) * Mat3::Identity() -
-        tr * u * dphi.transpose() - phi * tr * Mat3::Identity() - Wtu * dphi.transpose() - phi * W.transpose();
-  J += vis * Jl;
-  // H_kl = d_k d_l K V.
+  // P_kl = u . T(:,kl) (symmetric), q_l = sum_k T(k, kl).
+  double Pv[6];
+  for (int kl = 0; kl < 6; ++kl) Pv[kl] = u.dot(T.col(kl));
+  const Vec3 q(T(0, 0) + T(1, 3) + T(2, 4), T(0, 3) + T(1, 1) + T(2, 5), T(0, 4) + T(1, 5) + T(2, 2));
+  const Vec3 Pu(Pv[0] * u[0] + Pv[3] * u[1] + Pv[4] * u[2], Pv[3] * u[0] + Pv[1] * u[1] + Pv[5] * u[2],
+                Pv[4] * u[0] + Pv[5] * u[1] + Pv[2] * u[2]);
+  const double trP = Pv[0] + Pv[1] + Pv[2], uPu = u.dot(Pu);
+  const double SP = c4 * trP + c24 * uPu;  // S : P, S = c4 I + c24 u u^T
+  // g = K V + sum_k d_k K W(:,k) + 1/2 sum_kl d_k d_l K T(:,kl)
+  //   = u (-phi uV - dphi.Wtu - phi tr - SP/2 - dphi.q) - phi Wtu - P dphi - phi q,  P dphi = c4 P u.
+  const double cu = -phi * uV - dphi.dot(Wtu) - phi * tr - 0.5 * SP - dphi.dot(q);
+  g += vis * (cu * u - phi * Wtu - c4 * Pu - phi * q);
+  // J = u a^T - Wtu dphi^T + c I - phi W^T with
+  //   a = -(S Wtu) - W dphi - tr dphi - uV dphi - phi V,  S Wtu = c4 Wtu + c24 u (u.Wtu),
+  //   c = -u.(W dphi) - phi tr - phi uV.
+  const Vec3 a = -(c4 * Wtu + (c24 * u.dot(Wtu)) * u) - Wdphi - (tr + uV) * dphi - phi * V;
+  const double c = -u.dot(Wdphi) - phi * (tr + uV);
+  for (int col = 0; col < 3; ++col)
+    for (int row = 0; row < 3; ++row)
+      J(row, col) += vis * (u[row] * a[col] - Wtu[row] * dphi[col] - phi * W(col, row) + (row == col ? c : 0.0));
+  // H_kl = d_k d_l K V = u alpha_kl + e_l w_k + e_k w_l, alpha_kl = -S_kl uV - dphi_k V_l - dphi_l V_k,
+  // w = -phi V - uV dphi.
+  const Vec3 w = -phi * V - uV * dphi;
   for (int kl = 0; kl < 6; ++kl) {
     const int k = kK[kl], l = kL[kl];
-    Vec3 h = -S(k, l) * uV * u - dphi[k] * V[l] * u - dphi[l] * V[k] * u - phi * (V[k] * Vec3::Unit(l) + V[l] * Vec3::Unit(k));
-    h[l] -= dphi[k] * uV;
-    h[k] -= dphi[l] * uV;
-    H.col(kl) += vis * h;
+    const double S_kl = (k == l ? c4 : 0.0) + c24 * u[k] * u[l];
+    const double alpha = -S_kl * uV - dphi[k] * V[l] - dphi[l] * V[k];
+    for (int row = 0; row < 3; ++row) H(row, kl) += vis * alpha * u[row];
+    H(l, kl) += vis * w[k];
+    H(k, kl) += vis * w[l];
   }
 }
 
@@ -96,27 +101,34 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   const detail::PatchData& P = d.P;
   // Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, b = point - node centre (each
   // patch's own second moments included); children after parents: reverse order.
-  std::vector<Vec3> V(nn);
-  std::vector<Mat3> W(nn);
-  std::vector<Mat36> T(nn);
+  // One record per node: the gather reads all three of a source at once (one cache miss instead of three).
+  struct Moments {
+    Vec3 V;
+    Mat3 W;
+    Mat36 T;
+  };
+  std::vector<Moments> mom(static_cast<size_t>(nn));
+  auto V = [&](int k) -> Vec3& { return mom[size_t(k)].V; };
+  auto W = [&](int k) -> Mat3& { return mom[size_t(k)].W; };
+  auto T = [&](int k) -> Mat36& { return mom[size_t(k)].T; };
   for (int k = nn - 1; k >= 0; --k) {
     const HNode& nd = d.nodes[k];
     if (nd.leaf()) {
       const int p = d.perm[nd.begin];
-      V[k] = g.area[p] * x[p] * g.normal[p];
-      W[k].setZero();
-      for (int kl = 0; kl < 6; ++kl) T[k].col(kl) = V[k] * P.M[p][kl];
+      V(k) = g.area[p] * x[p] * g.normal[p];
+      W(k).setZero();
+      for (int kl = 0; kl < 6; ++kl) T(k).col(kl) = V(k) * P.M[p][kl];
     } else {
-      T[k].setZero();
-      W[k].setZero();
-      V[k].setZero();
+      T(k).setZero();
+      W(k).setZero();
+      V(k).setZero();
       for (const int c : {nd.left, nd.right}) {
         const Vec3 dl = d.nodes[c].c - nd.c;
-        V[k] += V[c];
-        W[k] += W[c] + V[c] * dl.transpose();
+        V(k) += V(c);
+        W(k) += W(c) + V(c) * dl.transpose();
         for (int kl = 0; kl < 6; ++kl) {
           const int a = kK[kl], b = kL[kl];
-          T[k].col(kl) += T[c].col(kl) + W[c].col(a) * dl[b] + W[c].col(b) * dl[a] + V[c] * (dl[a] * dl[b]);
+          T(k).col(kl) += T(c).col(kl) + W(c).col(a) * dl[b] + W(c).col(b) * dl[a] + V(c) * (dl[a] * dl[b]);
         }
       }
     }
@@ -135,7 +147,8 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
       const Vec3& ca = d.nodes[k].c;
       for (std::int64_t e = e0; e < e1; ++e) {
         const int b = d.far_src[e];
-        gather(d.nodes[b].c - ca, double(d.far_vis[e]), V[b], W[b], T[b], gk, Jk, Hk);
+        const Moments& m = mom[size_t(b)];
+        gather(d.nodes[b].c - ca, double(d.far_vis[e]), m.V, m.W, m.T, gk, Jk, Hk);
       }
       G[k] = gk;
       J[k] = Jk;
