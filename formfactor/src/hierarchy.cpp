@@ -155,6 +155,9 @@ struct Local {
 
 constexpr double kExpansionConstant = 0.005;
 constexpr int kMaxBlockedRays = 256;
+// A link whose error (times its source's brightness) is below this fraction of the link tolerance is accepted
+// whatever its relative error (grazing and distant links).
+constexpr double kAbsolute = 0.002;
 
 struct VisResult {
   double V = 1, uncertainty = 0;
@@ -333,14 +336,16 @@ class Refiner {
     // (n_i.u)(n_j.u)/|u|^4 is of third order, modelled as s^3 (10 ca cb + 4 ca + 4 cb + 1) / (pi d_min^2) per unit
     // source area, times kExpansionConstant (calibrated on the test scenes: sphere, closed box, room with block,
     // Cornell box; test_hierarchy prints the worst ratio of the actual row error to the admitted one: 0.41 at most).
+    const double dmin = D - A.R - B.R, dmax = D + A.R + B.R;
+    const double k_hi = ca * cb / (kPi * dmin * dmin), k_lo = std::max(ma, 0.0) * std::max(mb, 0.0) / (kPi * dmax * dmax);
     const double e = kExpansionConstant * s * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
     const double la = std::max(lmax_[a], 0.0) / lref_, lb = std::max(lmax_[b], 0.0) / lref_;
     const double tol = link_tol_;
     // Accepted when the error times the source's brightness is within the tolerance relative to the link's
-    // smallest value (relative), or is at most 1% of the tolerance (absolute: grazing and distant links).
+    // smallest value (relative), or is at most kAbsolute of the tolerance (absolute: grazing and distant links).
     auto ok = [&](double err_a, double err_b) {  // errors per unit area of the source
-      return (err_a * lb <= tol * k_lo || err_a * B.area * lb <= 0.01 * tol) &&
-             (err_b * la <= tol * k_lo || err_b * A.area * la <= 0.01 * tol);
+      return (err_a * lb <= tol * k_lo || err_a * B.area * lb <= kAbsolute * tol) &&
+             (err_b * la <= tol * k_lo || err_b * A.area * la <= kAbsolute * tol);
     };
     if (!ok(e, e)) return false;
     // Rays cannot certify a shaft better than 1/cluster_rays: if even that would fail, refine without casting.
