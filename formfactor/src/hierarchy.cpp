@@ -335,7 +335,7 @@ class Refiner {
     // Error of the second-order expansion per receiver, absolute (F units): the remainder of
     // (n_i.u)(n_j.u)/|u|^4 is of third order, modelled as s^3 (10 ca cb + 4 ca + 4 cb + 1) / (pi d_min^2) per unit
     // source area, times kExpansionConstant (calibrated on the test scenes: sphere, closed box, room with block,
-    // Cornell box; test_hierarchy prints the worst ratio of the actual row error to the admitted one: 0.41 at most).
+    // Cornell box; test_hierarchy prints the worst ratio of the actual row error to the admitted one: 0.48 at most).
     const double dmin = D - A.R - B.R, dmax = D + A.R + B.R;
     const double k_hi = ca * cb / (kPi * dmin * dmin), k_lo = std::max(ma, 0.0) * std::max(mb, 0.0) / (kPi * dmax * dmax);
     const double e = kExpansionConstant * s * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
