@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <vector>
 
@@ -120,6 +121,122 @@ formfactor::RowSumCheck check_rows(const CommonOptions& o, const mesh::Scene& sc
   return formfactor::check_row_sums(scene.geometry, F, &st, c);
 }
 
+// --operator: which transport operator, and why (printed and in --stats). Throws InputError, with the estimate
+// and what to change, when the requested operator cannot fit in the memory available.
+struct OperatorChoice {
+  bool hierarchical = false;
+  std::string reason;
+};
+constexpr int kAutoDenseMaxPatches = 10000;  // dense is faster below (docs/benchmarks.md, "Hierarchical operator")
+
+std::string megabytes(std::size_t b) { return fmt::format("{:.0f} MB", double(b) / 1048576.0); }
+
+OperatorChoice choose_operator(const CommonOptions& o, int n, double rho_max) {
+  const formfactor::MemoryLimit mem = o.ff.max_bytes ? formfactor::MemoryLimit{o.ff.max_bytes, "max_bytes"}
+                                                     : formfactor::system_memory_limit();
+  const std::size_t dense = formfactor::DenseMatrixOperator::bytes_for(std::size_t(n));
+  const std::size_t hier = formfactor::estimate_hierarchy_bytes(std::size_t(n), o.hierarchy.tolerance);
+  const std::string avail = fmt::format("{} available ({})", megabytes(mem.bytes), mem.source);
+  const bool fixed_rule = o.ff_rule != "adaptive";
+  if (o.op == "hierarchical") {
+    if (o.adaptive_budget > 0)
+      throw InputError("--operator hierarchical: adaptive refinement (--adaptive-budget) reuses dense matrices between "
+                       "rounds; use --operator dense or auto");
+    if (fixed_rule)
+      throw InputError("--operator hierarchical: the fixed rule '" + o.ff_rule +
+                       "' is a dense-assembly study option; use --rule/--ff-rule adaptive or --operator dense");
+    if (hier > mem.bytes)
+      throw InputError(fmt::format("--operator hierarchical: {} patches are estimated to need {}, more than the {}; "
+                                   "raise --hierarchy-tolerance, use fewer patches (a larger --max-edge) or more memory",
+                                   n, megabytes(hier), avail));
+    return {true, fmt::format("requested; estimated {} of {}", megabytes(hier), avail)};
+  }
+  if (o.op == "dense") {
+    if (dense > mem.bytes)
+      throw InputError(fmt::format("--operator dense: the matrix for {} patches needs {} ({}^2 doubles), more than the "
+                                   "{}; use --operator hierarchical (estimated {}) or fewer patches (a larger --max-edge)",
+                                   n, megabytes(dense), n, avail, megabytes(hier)));
+    return {false, fmt::format("requested; {} of {}", megabytes(dense), avail)};
+  }
+  if (o.adaptive_budget > 0 || fixed_rule) {
+    if (dense > mem.bytes)
+      throw InputError(fmt::format("the dense matrix for {} patches needs {}, more than the {}, and {} needs the dense "
+                                   "operator; use fewer patches (a larger --max-edge)",
+                                   n, megabytes(dense), avail,
+                                   fixed_rule ? "the fixed rule '" + o.ff_rule + "'" : std::string("--adaptive-budget")));
+    return {false, fmt::format("auto: {} needs the dense operator; {} of {}",
+                               fixed_rule ? "the fixed rule '" + o.ff_rule + "'" : std::string("adaptive refinement"),
+                               megabytes(dense), avail)};
+  }
+  // Bright interiors: the hierarchy refines to tolerance (1 - rho)/rho and loses its advantage; dense if it fits.
+  if (rho_max > 0.95 && dense <= mem.bytes / 2)
+    return {false, fmt::format("auto: reflectance up to {:.4g} amplifies the hierarchy's row error {:.0f}-fold; the dense "
+                               "matrix fits ({} of {})",
+                               rho_max, rho_max / (1 - rho_max), megabytes(dense), avail)};
+  if (n <= kAutoDenseMaxPatches && dense <= mem.bytes / 2)
+    return {false, fmt::format("auto: {} patches <= {}, where the dense matrix is faster and exact to the form-factor "
+                               "tolerance; {} of {}",
+                               n, kAutoDenseMaxPatches, megabytes(dense), avail)};
+  if (hier > mem.bytes)
+    throw InputError(fmt::format("{} patches: the dense matrix needs {} and the hierarchical operator an estimated {}, "
+                                 "more than the {}; raise --hierarchy-tolerance or use fewer patches (a larger --max-edge)",
+                                 n, megabytes(dense), megabytes(hier), avail));
+  if (n <= kAutoDenseMaxPatches)
+    return {true, fmt::format("auto: the dense matrix would need {}, more than half of the {}; hierarchical estimated {}",
+                              megabytes(dense), avail, megabytes(hier))};
+  return {true, fmt::format("auto: {} patches > {}, where the hierarchical operator is faster (dense would need {}); "
+                            "estimated {} of {}",
+                            n, kAutoDenseMaxPatches, megabytes(dense), megabytes(hier), avail)};
+}
+
+// Options of the hierarchical operator from the CLI's; brightness: the a-priori bound L_i <= Le_i + rho_i
+// max(Le) / (1 - rho_max) (largest channel), so links from black, non-emitting surfaces are accepted coarse.
+// `emission`: the solve's emission term when it is more than the materials' (a sky's rho E_sky / pi and glazing's
+// tau E_out / pi); the links' error is weighed by it, so a daylit scene without lamps is not treated as dark.
+formfactor::HierarchyOptions hierarchy_options(const CommonOptions& o, const mesh::Scene& scene, Progress* progress,
+                                               const ColorField* emission = nullptr) {
+  formfactor::HierarchyOptions h = o.hierarchy;
+  const double rho_max = max_reflectance(scene.materials);
+  h.entry_tolerance = o.ff.tolerance;
+  h.max_reflectance = rho_max;
+  h.visibility = !o.no_visibility;
+  h.rays_per_pair = o.ff.rays_per_pair;
+  h.threads = o.threads;
+  h.max_bytes = o.ff.max_bytes;
+  if (progress) h.progress = [progress](double x) { progress->update(x); };
+  const ColorField Le = emission ? *emission : scene.emission_field(), rho = scene.reflectance_field();
+  const double le_max = Le.size() ? Le.maxCoeff() : 0.0;
+  h.brightness.resize(size_t(scene.patches()));
+  for (int p = 0; p < scene.patches(); ++p)
+    h.brightness[size_t(p)] = Le.row(p).maxCoeff() + rho.row(p).maxCoeff() * le_max / (1 - std::min(rho_max, 0.999999));
+  return h;
+}
+
+// The assembly statistics the summary, the checks and --stats read, from a hierarchical build.
+formfactor::Stats stats_of(const formfactor::HierarchyStats& h, const formfactor::HierarchyOptions& o) {
+  formfactor::Stats st;
+  st.rule = "hierarchical";
+  st.tolerance = h.entry_tolerance;
+  st.visibility = o.visibility;
+  st.rays_per_pair = o.rays_per_pair;
+  st.patches = h.patches;
+  st.pairs_total = h.dense_pairs_equivalent;
+  st.pairs_ray_tested = h.pairs_ray_tested;
+  st.pairs_shaft_culled = h.pairs_shaft_clear;
+  st.pairs_orientation_culled = h.pairs_culled;
+  st.rays_cast = h.rays_cast;
+  st.row_sum_min = h.row_sum_min;
+  st.row_sum_max = h.row_sum_max;
+  st.row_sum_mean = h.row_sum_mean;
+  st.row_error_bound = h.row_error;         // far links' admitted error plus the leaf entries' bounds
+  st.row_error_bound_max = h.row_error_max;
+  st.row_visibility_sigma = h.row_visibility_sigma;
+  st.row_visibility_sigma_max = h.row_visibility_sigma_max;
+  st.seconds["form_factors"] = h.seconds_total;
+  st.bytes = h.bytes;
+  return st;
+}
+
 // One run of `solve` or `formfactors`: what the summary and --stats describe (one schema for both).
 struct Run {
   std::string command;                             // "solve" | "formfactors"
@@ -131,6 +248,8 @@ struct Run {
   const formfactor::RowSumCheck* row_check = nullptr;  // independent ray estimate of row sums (final assembly)
   long long entries_written = -1;                  // formfactors only
   const DaylightRun* daylight = nullptr;           // solve with --sky / sensors / --units photometric
+  std::string op_kind, op_reason;                  // "dense" | "hierarchical", and why (choose_operator)
+  const formfactor::HierarchyStats* hierarchy = nullptr;  // the hierarchical operator's build
 };
 
 // A finding that the summary and --stats report; `fatal` findings make the result untrustworthy (exit 3,
@@ -191,7 +310,7 @@ std::vector<Finding> assess(const Run& r) {
     // Fatal under the adaptive rule, whose error is controlled; the fixed rules (point, gaussN) exist to show
     // what uncontrolled rules do, so there it is reported and the result still written.
     const formfactor::RowSumCheck& c = *r.row_check;
-    const bool controlled = !r.ff || r.ff->rule == "adaptive";
+    const bool controlled = !r.ff || r.ff->rule == "adaptive" || r.ff->rule == "hierarchical";
     add("row_sum_check", c.max_ratio,
         fmt::format("row-sum check: patch {} sums to {:.6f} but rays cast from it find {:.6f} (allowed difference "
                     "{:.2e}, exceeded {:.3g}x): form factors or visibility are wrong (a leak, or missing light){}",
@@ -276,6 +395,22 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
   }
   if (r.entries_written >= 0) j["entries_written"] = r.entries_written;
   if (r.daylight && r.daylight->active()) j["daylight"] = r.daylight->stats();
+  if (!r.op_kind.empty()) j["operator"] = {{"kind", r.op_kind}, {"reason", r.op_reason}};
+  if (r.hierarchy) {
+    const formfactor::HierarchyStats& h = *r.hierarchy;
+    j["hierarchy"] = {{"tolerance", h.tolerance}, {"link_tolerance", h.link_tolerance},
+                      {"entry_tolerance", h.entry_tolerance}, {"nodes", h.nodes},
+                      {"levels", h.levels}, {"far_links", h.far_links}, {"leaf_links", h.leaf_links},
+                      {"far_links_per_level", h.far_links_per_level}, {"pairs_culled", h.pairs_culled},
+                      {"links_shaft_clear", h.links_shaft_clear}, {"links_ray_tested", h.links_ray_tested},
+                      {"links_blocked", h.links_blocked}, {"pairs_ray_tested", h.pairs_ray_tested},
+                      {"pairs_shaft_clear", h.pairs_shaft_clear},
+                      {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
+                      {"radiance_error_max", h.radiance_error_max},
+                      {"row_visibility_sigma_max", h.row_visibility_sigma_max}, {"bytes", h.bytes},
+                      {"bytes_estimate", h.bytes_estimate}, {"dense_pairs_equivalent", h.dense_pairs_equivalent},
+                      {"seconds", {{"tree", h.seconds_tree}, {"links", h.seconds_links}, {"total", h.seconds_total}}}};
+  }
   if (r.row_check) {
     const formfactor::RowSumCheck& c = *r.row_check;
     j["row_sum_check"] = {{"patches_checked", c.patches_checked}, {"rays", c.rays},
@@ -319,7 +454,33 @@ std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* 
 std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Finding>& findings,
                     const std::string& detail) {
   std::string s = fmt::format("lambert {} {}\n", r.command, r.options->scene) + scene_line(*r.scene);
-  if (r.ff) s += ff_lines(*r.ff, r.row_check);
+  if (!r.op_kind.empty()) s += fmt::format("  operator     {} ({})\n", r.op_kind, r.op_reason);
+  if (r.hierarchy) {
+    const formfactor::HierarchyStats& h = *r.hierarchy;
+    std::string per_level;
+    for (size_t l = 0; l < h.far_links_per_level.size(); ++l)
+      if (h.far_links_per_level[l]) per_level += fmt::format("{}{}:{}", per_level.empty() ? "" : " ", l, h.far_links_per_level[l]);
+    s += fmt::format("  hierarchy    {} nodes, {} levels; {} cluster links, {} patch-pair entries ({:.3g}% of the {} "
+                     "pairs); {} memory; visibility: cluster pairs {} ray-tested, {} proven clear, {} found blocked; "
+                     "patch pairs {} ray-tested, {} proven clear; {} rays\n"
+                     "  hierarchy    tolerance {:.1e} ({:.1e} per link after the reflectance's amplification); admitted row error {:.2e} (form factor), {:.2e} "
+                     "(radiance, relative to the brightest), patch-pair visibility sigma {:.1e}; row sum min/mean/max "
+                     "{:.6f} / {:.6f} / {:.6f}\n"
+                     "  hierarchy    cluster links per level {}\n",
+                     h.nodes, h.levels, h.far_links, h.leaf_links,
+                     100.0 * double(h.far_links + h.leaf_links) / double(std::max(1LL, h.dense_pairs_equivalent)),
+                     h.dense_pairs_equivalent, megabytes(h.bytes), h.links_ray_tested, h.links_shaft_clear, h.links_blocked, h.pairs_ray_tested,
+                     h.pairs_shaft_clear, h.rays_cast,
+                     h.tolerance, h.link_tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
+                     per_level.empty() ? "-" : per_level);
+    if (r.row_check && r.row_check->patches_checked > 0)
+      s += fmt::format("  row sums     {} patches against {} rays cast from them: largest difference {:.2e}, {:.2g}x "
+                       "the allowed (patch {})\n",
+                       r.row_check->patches_checked, r.row_check->rays, r.row_check->max_difference,
+                       r.row_check->max_ratio, r.row_check->worst_patch);
+  } else if (r.ff) {
+    s += ff_lines(*r.ff, r.row_check);
+  }
   s += detail;
   if (r.solution) {
     const solver::Solution& sol = *r.solution;
@@ -420,42 +581,71 @@ int run_info(const CommonOptions& o) {
 int run_formfactors(const CommonOptions& o) {
   PhaseTimer timer;
   mesh::Scene scene = load(o, timer, /*solving=*/false);
+  const OperatorChoice choice = choose_operator(o, scene.patches(), max_reflectance(scene.materials));
   formfactor::Stats st;
-  Progress progress("form factors", !o.quiet);
-  const formfactor::Options f = ff_options(o, max_reflectance(scene.materials), &progress);
-  timer.start("form_factors");
-  const formfactor::DenseMatrixOperator F = formfactor::assemble(scene.geometry, f, &st);
-  progress.done();
+  formfactor::HierarchyStats hs;
+  std::unique_ptr<formfactor::TransportOperator> op;
+  {
+    Progress progress(choice.hierarchical ? "hierarchy" : "form factors", !o.quiet);
+    timer.start("form_factors");
+    if (choice.hierarchical) {
+      const formfactor::HierarchyOptions h = hierarchy_options(o, scene, &progress);
+      op = std::make_unique<formfactor::HierarchicalOperator>(formfactor::build_hierarchy(scene.geometry, h, &hs));
+      st = stats_of(hs, h);
+    } else {
+      const formfactor::Options f = ff_options(o, max_reflectance(scene.materials), &progress);
+      op = std::make_unique<formfactor::DenseMatrixOperator>(formfactor::assemble(scene.geometry, f, &st));
+    }
+  }
   timer.start("checks");
-  const formfactor::RowSumCheck row_check = check_rows(o, scene, F, st);
-  timer.start("aggregate");
-  const auto entries = formfactor::aggregate_to_faces(F, scene.geometry, scene.face_id, scene.input_faces);
+  const formfactor::RowSumCheck row_check = check_rows(o, scene, *op, st);
+  // Dense: aggregated in memory; hierarchical: streamed face by face while writing (no N x N anything).
+  std::vector<formfactor::FaceEntry> entries;
+  if (!choice.hierarchical) {
+    timer.start("aggregate");
+    entries = formfactor::aggregate_to_faces(static_cast<const formfactor::DenseMatrixOperator&>(*op), scene.geometry,
+                                             scene.face_id, scene.input_faces);
+    if (o.min_factor > 0)
+      entries.erase(std::remove_if(entries.begin(), entries.end(), [&](const auto& e) { return e.F < o.min_factor; }),
+                    entries.end());
+  }
   timer.stop();
-  Run run{.command = "formfactors", .options = &o, .scene = &scene, .ff = &st, .row_check = &row_check};
+  Run run{.command = "formfactors", .options = &o, .scene = &scene, .ff = &st, .row_check = &row_check,
+          .op_kind = choice.hierarchical ? "hierarchical" : "dense", .op_reason = choice.reason,
+          .hierarchy = choice.hierarchical ? &hs : nullptr};
   const std::vector<Finding> findings = assess(run);
   const int status = verdict(findings, "the form factors");
+  long long written = 0;
   if (status == 0) {
-    run.entries_written = (long long)entries.size();
     timer.start("write");
     write_output(o.output, [&](std::ostream& os) {
       std::string buf;
       buf.reserve(1 << 20);
-      for (const auto& e : entries) {
-        fmt::format_to(std::back_inserter(buf), "{},{},{:.12g}\n", e.i, e.j, e.F);
+      auto put = [&](int i, int j, double F) {
+        fmt::format_to(std::back_inserter(buf), "{},{},{:.12g}\n", i, j, F);
+        ++written;
         if (buf.size() > (1 << 20) - 64) {
           os.write(buf.data(), std::streamsize(buf.size()));
           buf.clear();
         }
-      }
+      };
+      if (choice.hierarchical)
+        formfactor::stream_faces(static_cast<const formfactor::HierarchicalOperator&>(*op), scene.geometry,
+                                 scene.face_id, scene.input_faces, o.min_factor, put);
+      else
+        for (const auto& e : entries) put(e.i, e.j, e.F);
       os.write(buf.data(), std::streamsize(buf.size()));
     });
     timer.stop();
+    run.entries_written = written;
     if (!o.stats.empty()) write_json(o.stats, stats_json(run, timer, findings));
     commit_outputs();  // all outputs or none
   }
   if (!o.quiet) {
     std::string out = summary(run, timer, findings, "");
-    if (status == 0) out += fmt::format("  output       {} ({} nonzero entries)\n", o.output, entries.size());
+    if (status == 0)
+      out += fmt::format("  output       {} ({} entries{})\n", o.output, written,
+                         o.min_factor > 0 ? fmt::format(" >= {:g}", o.min_factor) : std::string(" nonzero"));
     std::fputs(out.c_str(), stderr);
   }
   return status;
@@ -497,6 +687,9 @@ int finish_solve(const Run& run, PhaseTimer& timer, const std::string& detail) {
 
 // --adaptive-budget: solve coarse, split where the estimated error is (refine/adaptive.hpp), re-solve.
 int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseTimer& timer) {
+  if (o.op == "hierarchical")
+    throw InputError("--operator hierarchical: adaptive refinement (--adaptive-budget) reuses dense matrices between "
+                     "rounds; use --operator dense or auto");
   check_adaptive_budget(o);  // before any work
   mesh::PolygonSoup soup = read_input(o, timer);
   timer.start("prepare");
@@ -526,7 +719,8 @@ int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseT
       rounds, r.stop, r.error_estimate.empty() ? 0.0 : r.error_estimate.back(), ao.tolerance,
       pairs ? 100.0 * double(reused) / double(pairs) : 0.0);
   const formfactor::Stats* last = r.rounds.empty() ? nullptr : &r.rounds.back().ff;
-  Run run{.command = "solve", .options = &o, .scene = &r.scene, .ff = last, .solution = &r.solution, .adaptive = &r};
+  Run run{.command = "solve", .options = &o, .scene = &r.scene, .ff = last, .solution = &r.solution, .adaptive = &r,
+          .op_kind = "dense", .op_reason = "adaptive refinement reuses dense matrices between rounds"};
   formfactor::RowSumCheck row_check;
   if (r.final_matrix) {
     timer.start("checks");
@@ -544,23 +738,37 @@ int run_solve(const CommonOptions& o) {
   if (o.adaptive_budget > 0) return run_solve_adaptive(o, so, timer);
   DaylightRun day(o);  // --sky, sensors, --units (checked before any work)
   mesh::Scene scene = load(o, timer, /*solving=*/!day.sky_active());  // a sky is an emitter
+  const OperatorChoice choice = choose_operator(o, scene.patches(), max_reflectance(scene.materials));
+
+  // The sky's emission term: after a dense assembly (its rows tell the sky gatherer which patches each patch
+  // sees), before a hierarchical one (whose links are weighed by the emission they carry).
+  ColorField Le = scene.emission_field();
+  const auto sky_emission = [&](const formfactor::DenseMatrixOperator* dense) {
+    if (!day.sky_active()) return;
+    timer.start("sky");
+    Le = day.emission(scene, dense, o.quiet);  // rho E_sky / pi and tau E_outside / pi added to Le
+  };
+  if (choice.hierarchical) sky_emission(nullptr);
 
   formfactor::Stats st;
-  formfactor::DenseMatrixOperator F;
+  formfactor::HierarchyStats hs;
+  std::unique_ptr<formfactor::TransportOperator> F;
   {
-    Progress progress("form factors", !o.quiet);
-    const formfactor::Options opt = ff_options(o, max_reflectance(scene.materials), &progress);
+    Progress progress(choice.hierarchical ? "hierarchy" : "form factors", !o.quiet);
     timer.start("form_factors");
-    F = formfactor::assemble(scene.geometry, opt, &st);
+    if (choice.hierarchical) {
+      const formfactor::HierarchyOptions h = hierarchy_options(o, scene, &progress, &Le);
+      F = std::make_unique<formfactor::HierarchicalOperator>(formfactor::build_hierarchy(scene.geometry, h, &hs));
+      st = stats_of(hs, h);
+    } else {
+      const formfactor::Options opt = ff_options(o, max_reflectance(scene.materials), &progress);
+      F = std::make_unique<formfactor::DenseMatrixOperator>(formfactor::assemble(scene.geometry, opt, &st));
+    }
   }
   timer.start("checks");
-  const formfactor::RowSumCheck row_check = check_rows(o, scene, F, st);
+  const formfactor::RowSumCheck row_check = check_rows(o, scene, *F, st);
 
-  ColorField Le = scene.emission_field();
-  if (day.sky_active()) {
-    timer.start("sky");
-    Le = day.emission(scene, F, o.quiet);  // rho E_sky / pi and tau E_outside / pi added to Le
-  }
+  if (!choice.hierarchical) sky_emission(dynamic_cast<const formfactor::DenseMatrixOperator*>(F.get()));
   timer.start("solve");
   solver::Solution sol;
   {
@@ -569,7 +777,7 @@ int run_solve(const CommonOptions& o) {
       progress.note(fmt::format("channel {} iteration {} residual {:.2e}", channel, iteration, residual));
       progress.update(std::clamp(std::log10(std::max(residual, 1e-300)) / std::log10(so.tolerance), 0.0, 1.0));
     };
-    sol = solver::solve(F, scene.geometry.area, scene.reflectance_field(), Le, so);
+    sol = solver::solve(*F, scene.geometry.area, scene.reflectance_field(), Le, so);
     so.progress = nullptr;
   }
   if (day.sensors_requested()) {
@@ -578,7 +786,8 @@ int run_solve(const CommonOptions& o) {
   }
   timer.stop();
   const Run run{.command = "solve", .options = &o, .scene = &scene, .ff = &st, .solution = &sol, .row_check = &row_check,
-                .daylight = &day};
+                .daylight = &day, .op_kind = choice.hierarchical ? "hierarchical" : "dense", .op_reason = choice.reason,
+                 .hierarchy = choice.hierarchical ? &hs : nullptr};
   return finish_solve(run, timer, "");
 }
 

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "lambert/formfactor/assemble.hpp"
+#include "lambert/formfactor/hierarchy.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/scene.hpp"
 #include "lambert/refine/adaptive.hpp"
@@ -28,6 +29,9 @@ struct CommonOptions {
   formfactor::Options ff;            // --ff-tolerance / --tolerance (formfactors), --rays
   solver::Options solve;             // --tolerance (solve), --max-iterations
   refine::AdaptiveOptions adaptive;  // --adaptive-tol, --adaptive-rounds
+  std::string op = "auto";           // --operator: dense | hierarchical | auto (commands.cpp: choose_operator)
+  formfactor::HierarchyOptions hierarchy;  // --hierarchy-tolerance
+  double min_factor = 0;             // formfactors --min-factor: entries below are not written
   // Daylight and photometry (app/daylight.hpp): --sky, --up, --ground-reflectance, --units, --sensors,
   // --work-plane, --grid, --grid-inset, --sensors-out, --sensor-rays
   std::string sky, up = "y", units = "radiometric", sensors, sensors_out;

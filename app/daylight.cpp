@@ -70,16 +70,20 @@ DaylightRun::DaylightRun(const CommonOptions& o) : o_(o) {
 double DaylightRun::scale() const { return photometric_ ? daylight::kEfficacy : 1.0; }
 double DaylightRun::value(const RGB& e) const { return scale() * daylight::luminance_weighted(e); }
 
-ColorField DaylightRun::emission(const mesh::Scene& scene, const formfactor::DenseMatrixOperator& F, bool quiet) {
+ColorField DaylightRun::emission(const mesh::Scene& scene, const formfactor::DenseMatrixOperator* F, bool quiet) {
   if (!has_sky_) return scene.emission_field();
   const auto t0 = std::chrono::steady_clock::now();
   if (!gatherer_) gatherer_ = std::make_unique<daylight::Gatherer>(scene.geometry, o_.sensor_rays);
   {
     Progress progress("sky", !quiet);
-    const auto& M = F.matrix();
-    const daylight::VisibilityHint seen = [&M](int i, std::vector<char>& flags) {
-      for (Eigen::Index j = 0; j < M.cols(); ++j) flags[size_t(j)] = M(i, j) > 0;  // F_ij > 0: i sees j
-    };
+    // The dense rows tell which patches each patch sees (F_ij > 0), a hint for the sky gatherer's occluder
+    // search; the hierarchical operator has no rows and gives no hint (same result, more occluder tests).
+    daylight::VisibilityHint seen;
+    if (F) {
+      seen = [&M = F->matrix()](int i, std::vector<char>& flags) {
+        for (Eigen::Index j = 0; j < M.cols(); ++j) flags[size_t(j)] = M(i, j) > 0;  // F_ij > 0: i sees j
+      };
+    }
     patch_sky_ = daylight::patch_sky_irradiance(scene, sky_, *gatherer_, &patch_stats_, seen,
                                                 [&](double f) { progress.update(f); });
   }

@@ -25,7 +25,7 @@ class DaylightRun {
   bool active() const { return has_sky_ || sensors_requested() || photometric_; }
 
   // Emission for the solve: Le + rho E_sky / pi + tau E_out / pi (scene.emission_field() without a sky).
-  ColorField emission(const mesh::Scene& scene, const formfactor::DenseMatrixOperator& F, bool quiet);
+  ColorField emission(const mesh::Scene& scene, const formfactor::DenseMatrixOperator* F, bool quiet);
   // Sensors after the solve (reads or generates them).
   void sensors(const mesh::Scene& scene, const ColorField& radiance, bool quiet);
 

@@ -108,6 +108,17 @@ int main(int argc, char** argv) {
     sub->add_option("--rays", common.ff.rays_per_pair, "Visibility rays per pair that may be partially occluded")
         ->check(Positive)
         ->capture_default_str();
+    sub->add_option("--operator", common.op,
+                    "Form-factor operator: dense (the N x N matrix, 8 N^2 bytes), hierarchical (clustered links, "
+                    "memory and time below N^2, error set by --hierarchy-tolerance), auto (dense where it is faster "
+                    "and fits in memory; the choice and why are printed)")
+        ->check(CLI::IsMember({"dense", "hierarchical", "auto"}))
+        ->capture_default_str();
+    sub->add_option("--hierarchy-tolerance", common.hierarchy.tolerance,
+                    "Hierarchical operator: radiance error admitted per link, relative to the brightest patch (links "
+                    "from dark surfaces are accepted coarser); the summary reports the error admitted per row")
+        ->check(number_in(0, 1, true, "a number in (0, 1)"))
+        ->capture_default_str();
   };
 
   // solve
@@ -182,6 +193,9 @@ int main(int argc, char** argv) {
   add_common(ff, true);
   ff->add_option("-o,--output", common.output, "Output file (.csv): one line i,j,F_ij per nonzero entry, no header")->required();
   add_formfactor(ff, "--tolerance");
+  ff->add_option("--min-factor", common.min_factor, "Write only entries F_IJ >= this (0 = every nonzero entry)")
+      ->check(NonNegative)
+      ->capture_default_str();
 
   // verify
   auto* verify = app.add_subcommand("verify", "Solve cases with exact answers and compare");
@@ -223,7 +237,7 @@ int main(int argc, char** argv) {
   }
 
   common.prepare.repair = !common.no_repair;
-  common.prepare.max_patches = app::max_patches_in_memory();  // refuse a --max-edge whose patches cannot be solved
+  common.prepare.max_patches = app::max_patches_in_memory(common);  // refuse a --max-edge whose patches cannot be solved
   common.prepare.orient = mesh::parse_orientation(common.orient);
 
   std::optional<tbb::global_control> threads;

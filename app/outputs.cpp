@@ -47,6 +47,18 @@ long long max_patches_in_memory() {
   return static_cast<long long>(std::floor(std::sqrt(0.8 * physical_bytes() / 8.0)));
 }
 
+long long max_patches_in_memory(const CommonOptions& o) {
+  if (o.op == "dense" || o.adaptive_budget > 0) return max_patches_in_memory();
+  // The largest n whose estimate fits (the estimate grows monotonically with n): bisection.
+  const std::size_t limit = formfactor::system_memory_limit().bytes;
+  long long lo = 1, hi = 1LL << 31;
+  while (hi - lo > 1) {
+    const long long mid = lo + (hi - lo) / 2;
+    (formfactor::estimate_hierarchy_bytes(std::size_t(mid), o.hierarchy.tolerance) <= limit ? lo : hi) = mid;
+  }
+  return std::max(max_patches_in_memory(), lo);
+}
+
 void check_adaptive_budget(const CommonOptions& o) {
   if (o.adaptive_budget <= 0) return;
   const long long limit = max_patches_in_memory();

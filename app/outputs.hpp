@@ -28,6 +28,9 @@ void commit_outputs();
 
 // Patches whose dense form-factor matrix (N^2 doubles) fits in 80% of physical memory.
 long long max_patches_in_memory();
+// The same for the operator --operator asks for: dense as above; hierarchical or auto: the patches whose
+// estimated hierarchy fits in the memory available (formfactor::system_memory_limit).
+long long max_patches_in_memory(const CommonOptions& o);
 
 // --adaptive-budget N: refuses (InputError, with the estimate and the largest budget that fits) a budget
 // whose final dense matrix cannot fit in memory, before any work starts.

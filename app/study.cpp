@@ -21,6 +21,7 @@
 
 #include "lambert/formfactor/assemble.hpp"
 #include "lambert/formfactor/exact.hpp"
+#include "lambert/formfactor/hierarchy.hpp"
 #include "lambert/io/atomic_file.hpp"
 #include "lambert/mesh/shapes.hpp"
 #include "lambert/solver/solve.hpp"
@@ -38,7 +39,9 @@ struct Knob {
   formfactor::Rule rule;
   int order;
   double tolerance;
+  bool hierarchical = false;  // the hierarchical operator at `tolerance` (--hierarchy-tolerance)
   std::string label() const {
+    if (hierarchical) return fmt::format("hierarchical {:.0e}", tolerance);
     return rule == formfactor::Rule::Adaptive ? fmt::format("adaptive {:.0e}", tolerance)
                                               : formfactor::to_string(rule, order);
   }
@@ -75,7 +78,7 @@ std::string csv_line(const Row& r, int threads) {
   return fmt::format("{},{},{},{:.6g},{},{},{},{},{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:.3e},{},{},{:.3e},"
                      "{:.6e},{:.6e},{:.6e}",
                      r.case_name, r.variant, r.level, r.h, r.patches, r.rho, r.knob.label(),
-                     r.knob.rule == formfactor::Rule::Adaptive ? fmt::format("{:g}", r.knob.tolerance) : "",
+                     r.knob.rule == formfactor::Rule::Adaptive || r.knob.hierarchical ? fmt::format("{:g}", r.knob.tolerance) : "",
                      r.rays, r.method, r.solve_tolerance > 0 ? fmt::format("{:g}", r.solve_tolerance) : "", threads,
                      r.t_ff, r.t_vis, r.t_solve, r.t_ff + r.t_solve, r.iterations, r.matvecs, r.residual,
                      r.converged ? 1 : 0, r.rays_cast, r.row_sum_dev, r.max_err, r.mean_err, r.rms_err);
@@ -88,7 +91,7 @@ class Study {
 
  private:
   struct Assembly {
-    std::shared_ptr<formfactor::DenseMatrixOperator> F;
+    std::shared_ptr<formfactor::DenseMatrixOperator> F;  // dense knobs (null for the hierarchical one)
     std::shared_ptr<const solver::Solver> solver;  // on F (its row sums computed once for every solve)
     formfactor::Stats stats;
     double seconds = 0;  // form factors and the solver's set-up
@@ -103,6 +106,7 @@ class Study {
   void solver_methods();
   void furnace();
   void scale();
+  void hierarchy();
   void catalogue();
 
   const StudyOptions& o_;
@@ -118,8 +122,20 @@ Study::Assembly Study::assemble(const mesh::PatchGeometry& g, const Knob& k, int
   ff.rays_per_pair = rays;
   Assembly a;
   const auto t = Clock::now();
-  a.F = std::make_shared<formfactor::DenseMatrixOperator>(formfactor::assemble(g, ff, &a.stats));
-  a.solver = std::make_shared<const solver::Solver>(a.F, g.area);
+  if (k.hierarchical) {
+    formfactor::HierarchyOptions ho;
+    ho.tolerance = k.tolerance;
+    ho.rays_per_pair = rays;
+    formfactor::HierarchyStats hs;
+    auto H = std::make_shared<formfactor::HierarchicalOperator>(formfactor::build_hierarchy(g, ho, &hs));
+    a.stats.rays_cast = hs.rays_cast;
+    a.stats.row_sum_min = hs.row_sum_min;
+    a.stats.row_sum_max = hs.row_sum_max;
+    a.solver = std::make_shared<const solver::Solver>(H, g.area);
+  } else {
+    a.F = std::make_shared<formfactor::DenseMatrixOperator>(formfactor::assemble(g, ff, &a.stats));
+    a.solver = std::make_shared<const solver::Solver>(a.F, g.area);
+  }
   a.seconds = since(t);
   return a;
 }
@@ -278,6 +294,51 @@ void Study::furnace() {
     }
 }
 
+// The hierarchical operator against the dense one on cases with exact answers: its tolerance against the
+// error and the time, so that docs/accuracy.md shows where --operator auto should switch. Cases: the uniformly
+// emitting closed sphere (exact discrete answer E0 / (1 - rho), any deviation is operator error) and the white
+// furnace (room with a block: occlusion).
+void Study::hierarchy() {
+  const Knob kH2{formfactor::Rule::Adaptive, 1, 1e-2, true}, kH3{formfactor::Rule::Adaptive, 1, 1e-3, true},
+      kH4{formfactor::Rule::Adaptive, 1, 1e-4, true};
+  const std::vector<Knob> knobs = o_.quick ? std::vector<Knob>{kH2, kH3, kAdaptive8} : std::vector<Knob>{kH2, kH3, kH4, kAdaptive8};
+  const std::vector<int> levels = o_.quick ? std::vector<int>{3} : std::vector<int>{3, 4};
+  for (int K : levels) {
+    verify::SphereCase c;
+    c.subdivisions = K;
+    const mesh::PatchGeometry g = verify::sphere_geometry(c);
+    for (const Knob& k : knobs) {
+      const Assembly a = assemble(g, k, 16);
+      for (double rho : {0.5, 0.9}) {
+        c.rho = rho;
+        ColorField R, Le;
+        verify::sphere_fields(c, g, R, Le);
+        const Eigen::VectorXd exact = verify::sphere_exact(c, g);
+        Row r{.case_name = "hier_sphere", .variant = fmt::format("K={}", K), .level = double(K), .h = mean_size(g),
+              .rho = rho, .knob = k, .rays = 16};
+        solve_row(r, g, a, R, Le, exact, solver::Method::GMRES, 1e-12);
+      }
+    }
+  }
+  const std::vector<int> divisions = o_.quick ? std::vector<int>{8} : std::vector<int>{8, 16};
+  for (int n : divisions) {
+    verify::FurnaceCase c;
+    c.divisions = n;
+    c.block_divisions = n / 2;
+    const mesh::PatchGeometry g = verify::furnace_geometry(c);
+    for (const Knob& k : knobs) {
+      const Assembly a = assemble(g, k, 16);
+      for (double rho : {0.5, 0.9}) {
+        const ColorField Rf = ColorField::Constant(g.size(), 3, rho), Le = ColorField::Constant(g.size(), 3, 1.0);
+        const Eigen::VectorXd exact = Eigen::VectorXd::Constant(g.size(), 1 / (1 - rho));
+        Row r{.case_name = "hier_furnace", .variant = fmt::format("n={}", n), .level = double(n), .h = mean_size(g),
+              .rho = rho, .knob = k, .rays = 16};
+        solve_row(r, g, a, Rf, Le, exact, solver::Method::GMRES, 1e-12);
+      }
+    }
+  }
+}
+
 // One closed scene spanning 1 mm to 1 km: a 1000 m furnace room with a 1 mm speck floating inside.
 void Study::scale() {
   const std::vector<Knob> knobs =
@@ -384,6 +445,7 @@ void Study::run() {
   solver_methods();
   furnace();
   scale();
+  hierarchy();
   io::write_file_atomically(path, [&](std::ostream& out) {
     out << kHeader << '\n';
     for (const auto& l : lines_) out << l << '\n';

@@ -11,6 +11,14 @@ if(Python3_FOUND)
       sh $<TARGET_FILE:lambert> ${PROJECT_SOURCE_DIR}/examples/floorplan.obj ${CMAKE_CURRENT_BINARY_DIR}/leak_floorplan.vtu
       ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/scripts/make_floorplan.py)
   set_tests_properties(FloorPlanShutRoomStaysDark PROPERTIES LABELS "end-to-end" TIMEOUT 600)
+  # The same with the hierarchical operator: cluster links must not carry light through walls either (a
+  # cluster spanning the shut room and a lit one is linked only where every ray agrees, and rooms behind walls
+  # get no link at all).
+  add_test(NAME FloorPlanShutRoomStaysDarkHierarchical
+    COMMAND sh -c "\"$1\" solve \"$2\" -o \"$3\" --operator hierarchical --quiet && \"$4\" \"$5\" --check \"$3\""
+      sh $<TARGET_FILE:lambert> ${PROJECT_SOURCE_DIR}/examples/floorplan.obj ${CMAKE_CURRENT_BINARY_DIR}/leak_floorplan_h.vtu
+      ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/scripts/make_floorplan.py)
+  set_tests_properties(FloorPlanShutRoomStaysDarkHierarchical PROPERTIES LABELS "end-to-end" TIMEOUT 600)
 endif()
 
 # The quick accuracy study (issue: speed against error): the CSV must be well formed, errors must fall as

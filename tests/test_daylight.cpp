@@ -512,6 +512,24 @@ TEST_F(Daylight, ResultsIndependentOfPositionAndThreads) {
   }
 }
 
+// The hierarchical operator weighs each link by the emission it carries; under a sky that is the sky's term,
+// not the materials' (a daylit room has no lamps). Its daylight factors must match the dense operator's within
+// what --hierarchy-tolerance admits: 1e-3 relative to the brightest radiance, so 2e-3 of the largest daylight
+// factor here (the sensors see the same patches through the same rays in both runs; only the radiance differs).
+// Weighing by the materials' emission alone (zero) accepted every cluster link: 4.8e-2 % off, 2.4x the tolerance.
+TEST_F(Daylight, HierarchicalOperatorMatchesDenseUnderSky) {
+  const char* sensors = "4,0.85,1,0,1,0\n1,0.85,2,0,1,0\n2,1.2,3,-1,0,0\n0.5,0.85,2,0,1,0\n3.5,0.2,3.1,0,1,0\n";
+  const auto dense = solve("cie-overcast", 0.7, 0.2, true, true, sensors, 0.6, Vec3::Zero(), "--operator dense --max-edge 0.4");
+  const auto hier = solve("cie-overcast", 0.7, 0.2, true, true, sensors, 0.6, Vec3::Zero(),
+                          "--operator hierarchical --hierarchy-tolerance 1e-3 --max-edge 0.4");
+  ASSERT_EQ(dense.size(), 5u);
+  ASSERT_EQ(hier.size(), 5u);
+  double top = 0;
+  for (const SensorRow& r : dense) top = std::max(top, r.df);
+  for (size_t k = 0; k < dense.size(); ++k)
+    EXPECT_NEAR(hier[k].df, dense[k].df, 2e-3 * top) << "sensor " << k << " at " << dense[k].x.transpose();
+}
+
 // The same room modelled z-up (rotated 90 degrees about x) and solved with --up z gives the same daylight
 // factors as the y-up model with the default --up y (1e-6 %: the rotation's round-off and the clipping grid).
 TEST_F(Daylight, UpAxisFollowsTheModel) {

@@ -279,10 +279,13 @@ TEST_F(Hostile, HeaderCountsBeyondTheFileSizeAreRefusedNamingTheLine) {
 
 // --max-edge: the refined count is estimated before refining and refused with the estimate and a
 // --max-edge that fits (was 5.8 s and 3.5 GB, then "out of memory"); the split count no longer overflows
-// an int (a 10 m triangle with 1e-9 m edges silently stayed 1 patch).
+// an int (a 10 m triangle with 1e-9 m edges silently stayed 1 patch). The limit is what the operator can
+// hold: 2e6 patches (--max-edge 0.001) fit a hierarchical operator on a large machine but never a dense one
+// (32 TB); 2e10 (--max-edge 1e-5) fit neither.
 TEST_F(Hostile, RefinementBeyondMemoryIsRefusedBeforeRefining) {
   put("tri.obj", "mtllib two.mtl\nv 0 0 0\nv 10 0 0\nv 0 10 0\nusemtl lamp\nf 1 2 3\n");
-  for (const std::string args : {"info two.obj --max-edge 1e-9", "info two.obj --max-edge 0.001", "info tri.obj --max-edge 1e-9"}) {
+  for (const std::string args : {"info two.obj --max-edge 1e-9", "info two.obj --max-edge 1e-5", "info tri.obj --max-edge 1e-9",
+                                 "solve two.obj -o r.vtu --operator dense --max-edge 0.001"}) {
     SCOPED_TRACE(args);
     const CliRun r = run(args, 60);
     EXPECT_EQ(r.status, 1) << r.output;

@@ -129,6 +129,9 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
   sol.irradiance = ColorField::Zero(n, 3);
   const double rho_max = n > 0 ? rho.maxCoeff() : 0;
   sol.method = options.method == Method::Auto ? choose_method(rho_max, n, options.restart) : options.method;
+  if (sol.method == Method::GaussSeidel && !F_->has_rows())
+    throw InputError("gauss-seidel sweeps rows of F, which this transport operator does not store (the hierarchical "
+                     "operator); use --method auto, gmres, bicgstab or jacobi, or --operator dense");
 
   // ||diag(rho) F||_inf = max_i rho_i sum_j F_ij bounds the Neumann series' contraction factor.
   double contraction = 0;

@@ -2,7 +2,7 @@
 // TransportOperator: all the solver knows about form factors. F is N x N, dimensionless;
 // F(i, j) is the fraction of energy leaving patch i (Lambertian) that arrives at patch j, so
 // sum_j F(i, j) = 1 for a closed enclosure and A_i F_ij = A_j F_ji (reciprocity).
-// The dense matrix is one implementation; a sparse or hierarchical one can replace it.
+// Implementations: the dense matrix (dense.hpp) and the hierarchical operator (hierarchy.hpp).
 #include <Eigen/Core>
 
 namespace lambert::formfactor {
@@ -19,6 +19,9 @@ class TransportOperator {
   virtual double diagonal(int i) const = 0;
   // sum_j F(i, j): 1 in a closed scene; the deficit is what escapes.
   virtual double row_sum(int i) const = 0;
+  // Whether rows are stored (row_dot is then cheap). A hierarchical operator has no rows: Gauss-Seidel, which
+  // sweeps rows, cannot use it (the solver refuses, and its automatic choice never picks it).
+  virtual bool has_rows() const { return true; }
 };
 
 }  // namespace lambert::formfactor

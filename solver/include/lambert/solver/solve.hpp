@@ -24,6 +24,8 @@ enum class Method {
 Method parse_method(const std::string& name);
 std::string to_string(Method method);
 
+// Gauss-Seidel needs an operator with stored rows (TransportOperator::has_rows()); solve() refuses it otherwise
+// (InputError). Auto never picks Gauss-Seidel.
 // What Auto resolves to, from the largest reflectance and the patch count (GMRES needs fewer products F x
 // than Jacobi at every rho > 0, increasingly so as rho -> 1: docs/benchmarks_solver.md; Gauss-Seidel sweeps
 // are sequential):

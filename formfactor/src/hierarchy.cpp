@@ -1,0 +1,690 @@
+// Hierarchical operator: the cluster tree and the refinement oracle that creates the links (hierarchy.hpp).
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <numeric>
+#include <string>
+
+#include "hierarchy_internal.hpp"
+#include "sampling.hpp"
+
+namespace lambert::formfactor {
+
+using detail::Box;
+using detail::HNode;
+using detail::kPi;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Angle between unit vectors, accurate near 0 (atan2, not acos).
+double angle(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
+
+// ---------------------------------------------------------------------------------------------------------
+// The tree.
+
+struct TreeBuilder {
+  const mesh::PatchGeometry& g;
+  std::vector<HNode>& nodes;
+  std::vector<int>& perm;
+  std::vector<Box> pbox;
+
+  int build(int begin, int end, int parent, int level) {
+    const int id = int(nodes.size());
+    nodes.emplace_back();
+    nodes[id].begin = begin;
+    nodes[id].end = end;
+    nodes[id].parent = parent;
+    nodes[id].level = level;
+    if (end - begin == 1) {
+      leaf(id, perm[begin]);
+      return id;
+    }
+    // Split key: the largest of the centroids' extents and the normals' extents times half the node's size.
+    Box cb, nb;
+    for (int k = begin; k < end; ++k) {
+      cb.add(g.centroid[perm[k]]);
+      nb.add(g.normal[perm[k]]);
+    }
+    const Vec3 ce = cb.hi - cb.lo, ne = (nb.hi - nb.lo) * (0.5 * ce.norm());
+    int key = 0;
+    double best = -1;
+    for (int k = 0; k < 3; ++k) {
+      if (ce[k] > best) best = ce[k], key = k;
+      if (ne[k] > best) best = ne[k], key = 3 + k;
+    }
+    const int mid = (begin + end) / 2;
+    auto value = [&](int p) { return key < 3 ? g.centroid[p][key] : g.normal[p][key - 3]; };
+    std::nth_element(perm.begin() + begin, perm.begin() + mid, perm.begin() + end, [&](int a, int b) {
+      const double va = value(a), vb = value(b);
+      return va < vb || (va == vb && a < b);  // total order: the tree does not depend on the library's nth_element
+    });
+    const int l = build(begin, mid, id, level + 1);
+    const int r = build(mid, end, id, level + 1);
+    nodes[id].left = l;
+    nodes[id].right = r;
+    merge(id);
+    return id;
+  }
+
+  void leaf(int id, int p) {
+    HNode& nd = nodes[id];
+    nd.c = g.centroid[p];
+    nd.area = g.area[p];
+    nd.S = g.area[p] * g.normal[p];
+    nd.axis = g.normal[p];
+    nd.cone = 0;
+    nd.flat = true;
+    nd.box = pbox[p];
+    double R = 0, lo = INFINITY, hi = -INFINITY;
+    for (const Vec3& v : g.polygon(p)) {
+      R = std::max(R, (v - nd.c).norm());
+      const double h = nd.axis.dot(v - nd.c);
+      lo = std::min(lo, h);
+      hi = std::max(hi, h);
+    }
+    nd.R = R;
+    nd.slab_lo = lo;
+    nd.slab_hi = hi;
+  }
+
+  void merge(int id) {
+    HNode& nd = nodes[id];
+    const HNode &a = nodes[nd.left], &b = nodes[nd.right];
+    nd.area = a.area + b.area;
+    nd.c = (a.area * a.c + b.area * b.c) / nd.area;
+    nd.S = a.S + b.S;
+    nd.box = a.box;
+    nd.box.add(b.box);
+    nd.R = std::max((a.c - nd.c).norm() + a.R, (b.c - nd.c).norm() + b.R);
+    const double sn = nd.S.norm();
+    if (!(sn > 1e-12 * nd.area)) {
+      nd.axis = Vec3::UnitZ();
+      nd.cone = kPi;
+    } else {
+      nd.axis = nd.S / sn;
+      nd.cone = std::min(kPi, std::max(angle(nd.axis, a.axis) + a.cone, angle(nd.axis, b.axis) + b.cone));
+    }
+    nd.cos_cone = std::cos(nd.cone);
+    nd.sin_cone = std::sin(nd.cone);
+    nd.flat = nd.cone <= detail::kFlatCone && a.flat && b.flat;
+    if (nd.flat) {
+      double lo = INFINITY, hi = -INFINITY;
+      for (const HNode* c : {&a, &b}) {
+        const double shift = nd.axis.dot(c->c - nd.c), tilt = (nd.axis - c->axis).norm() * c->R;
+        lo = std::min(lo, c->slab_lo + shift - tilt);
+        hi = std::max(hi, c->slab_hi + shift + tilt);
+      }
+      nd.slab_lo = lo;
+      nd.slab_hi = hi;
+    }
+  }
+};
+
+// ---------------------------------------------------------------------------------------------------------
+// Links.
+
+struct FarRecord {
+  int a, b;          // unordered node pair
+  float vis;
+  float err_ab, err_ba;    // admitted F error for receivers in a (from b), in b (from a)
+  float lerr_ab, lerr_ba;  // the same times Lmax of the source, relative to L_ref
+};
+struct LeafRecord {
+  int i, j;
+  double Fij, Fji, err_ij, err_ji, sig_ij, sig_ji;
+};
+
+struct Local {
+  std::vector<FarRecord> far;
+  std::vector<LeafRecord> leaf;
+  long long culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
+  detail::SampleBuffers sb;
+  std::vector<Vec3> pa, pb;
+  int hint = -1;
+};
+
+constexpr double kExpansionConstant = 0.005;
+constexpr int kMaxBlockedRays = 256;
+// A link whose error (times its source's brightness) is below this fraction of the link tolerance is accepted
+// whatever its relative error (grazing and distant links).
+constexpr double kAbsolute = 0.002;
+
+struct VisResult {
+  double V = 1, uncertainty = 0;
+  bool refine = false;  // the shaft may be blocked and rays were not worth casting
+};
+
+class Refiner {
+ public:
+  Refiner(const mesh::PatchGeometry& g, const HierarchyOptions& o, HierarchicalOperator::Impl& d, double etol,
+          std::size_t limit)
+      : g_(g), o_(o), d_(d), etol_(etol), limit_(limit) {}
+
+  void setup(HierarchyStats& st) {
+    const int n = d_.n;
+    // Brightness per node (max over its patches), relative to the brightest.
+    lmax_.assign(d_.nodes.size(), 1.0);
+    lref_ = 1;
+    if (!o_.brightness.empty()) {
+      lref_ = 0;
+      for (double b : o_.brightness) lref_ = std::max(lref_, b);
+      if (!(lref_ > 0)) lref_ = 1;
+      for (int k = int(d_.nodes.size()) - 1; k >= 0; --k) {
+        const HNode& nd = d_.nodes[k];
+        lmax_[k] = nd.leaf() ? o_.brightness[d_.perm[nd.begin]] : std::max(lmax_[nd.left], lmax_[nd.right]);
+      }
+    }
+    cum_.assign(size_t(n) + 1, 0.0);
+    for (int k = 0; k < n; ++k) cum_[k + 1] = cum_[k] + g_.area[d_.perm[k]];
+    pbox_.resize(n);
+    for (int p = 0; p < n; ++p)
+      for (const Vec3& v : g_.polygon(p)) pbox_[p].add(v);
+    if (o_.visibility && n > 1) {
+      const std::vector<int> occ = potential_occluders(g_);
+      if (!occ.empty()) {
+        caster_ = o_.caster ? o_.caster : std::shared_ptr<const Visibility>(make_embree_visibility(g_, occ));
+        tree_ = detail::OccluderTree(g_, occ);
+        occlusion_ = true;
+      }
+    }
+    total_ = 0.5 * d_.nodes[0].area * d_.nodes[0].area;
+    (void)st;
+  }
+
+  void run() { refine(0, 0); }
+
+  tbb::enumerable_thread_specific<Local> locals;
+  double lref() const { return lref_; }
+  const std::vector<double>& lmax() const { return lmax_; }
+
+ private:
+  static constexpr int kParallelLevels = 14;
+
+  void progress(double amount) {
+    if (!o_.progress) return;
+    const double d = done_.fetch_add(amount) + amount;
+    std::unique_lock lock(progress_mutex_, std::try_to_lock);
+    if (lock.owns_lock() && since(last_) >= 0.1) {
+      last_ = Clock::now();
+      o_.progress(std::min(1.0, d / total_));
+    }
+  }
+
+  void check_memory() {
+    const long long k = links_.fetch_add(1) + 1;
+    if ((k & 0xFFFF) == 0 && std::size_t(k) * 56 + d_.bytes() > limit_)
+      throw InputError("hierarchical operator: the links outgrow the memory limit (" + std::to_string(k) +
+                       " links so far, ~" + std::to_string((std::size_t(k) * 56 + d_.bytes()) >> 20) + " MB, limit " +
+                       std::to_string(limit_ >> 20) +
+                       " MB); raise --hierarchy-tolerance, use fewer patches (--max-edge) or more memory");
+  }
+
+  // max over y's corners of n . (q - c_y) (n unit).
+  static double support(const HNode& y, const Vec3& n) {
+    const Vec3 ctr = 0.5 * (y.box.lo + y.box.hi), half = 0.5 * (y.box.hi - y.box.lo);
+    const double by_box = n.dot(ctr - y.c) + n.cwiseAbs().dot(half);
+    if (!y.flat) return by_box;
+    const double a = n.dot(y.axis);
+    return std::min(by_box, std::max(a * y.slab_hi, a * y.slab_lo) + (n - a * y.axis).norm() * y.R);
+  }
+
+  // Every receiver of x sees nothing of y (each patch of y is behind or in the plane of each patch of x).
+  bool faces_away(const HNode& x, const HNode& y) const {
+    const Vec3 U = y.c - x.c;
+    const double D = U.norm();
+    if (x.flat) {
+      const Vec3& n = x.axis;
+      const double sup = support(y, n);
+      const double eps = d_.P.scene_eps + x.cone * (D + x.R + y.R);
+      return n.dot(U) + sup <= x.slab_lo + eps;
+    }
+    if (!(D > x.R + y.R)) return false;
+    // angle(axis, U) - cone - delta >= pi/2, delta = asin((R_x + R_y) / D), without trigonometric calls:
+    // needs theta >= pi/2 and cone + delta <= pi/2, then cos(theta - cone - delta) <= 0.
+    const double sd = (x.R + y.R) / D, cd = std::sqrt(1 - sd * sd);
+    const double c1 = x.axis.dot(U) / D;
+    if (c1 > 0) return false;
+    const double s1 = x.axis.cross(U).norm() / D;
+    const double cad = x.cos_cone * cd - x.sin_cone * sd;  // cos(cone + delta)
+    if (cad < 0) return false;
+    const double sad = x.sin_cone * cd + x.cos_cone * sd;
+    return c1 * cad + s1 * sad <= 0;  // cos(theta - (cone + delta))
+  }
+
+  void refine(int a, int b) {
+    const HNode &A = d_.nodes[a], &B = d_.nodes[b];
+    if (a == b) {
+      if (A.leaf()) {
+        progress(0.5 * A.area * A.area);
+        return;
+      }
+      const int l = A.left, r = A.right;
+      if (A.level < kParallelLevels)
+        tbb::parallel_invoke([&] { refine(l, l); }, [&] { refine(r, r); }, [&] { refine(l, r); });
+      else {
+        refine(l, l);
+        refine(r, r);
+        refine(l, r);
+      }
+      return;
+    }
+    Local& loc = locals.local();
+    if (faces_away(A, B) || faces_away(B, A)) {
+      ++loc.culled;
+      progress(A.area * B.area);
+      return;
+    }
+    if (A.leaf() && B.leaf()) {
+      leaf_pair(d_.perm[A.begin], d_.perm[B.begin], loc);
+      progress(A.area * B.area);
+      return;
+    }
+    if (try_far(a, b, loc)) {
+      progress(A.area * B.area);
+      return;
+    }
+    const bool split_b = A.leaf() || (!B.leaf() && B.R > A.R);
+    const int keep = split_b ? a : b, s = split_b ? b : a;
+    const int c0 = d_.nodes[s].left, c1 = d_.nodes[s].right;
+    if (std::min(A.level, B.level) < kParallelLevels)
+      tbb::parallel_invoke([&] { refine(keep, c0); }, [&] { refine(keep, c1); });
+    else {
+      refine(keep, c0);
+      refine(keep, c1);
+    }
+  }
+
+  // The far-field test and, if it passes, the link.
+  bool try_far(int a, int b, Local& loc) {
+    const HNode &A = d_.nodes[a], &B = d_.nodes[b];
+    const Vec3 U = B.c - A.c;
+    const double D = U.norm();
+    if (!(D > 0)) return false;
+    const double s = (A.R + B.R) / D;
+    if (!(s < 0.5)) return false;
+    const Vec3 w = U / D;
+    // Per side: m = cos(theta + cone + delta), the smallest cosine of a normal with a direction between the
+    // clusters (theta the angle between the cone's axis and the centre direction, delta = asin(s) the angle the
+    // clusters subtend), and cmax = cos(max(0, theta - cone - delta)), the largest; by angle addition.
+    const double cd = std::sqrt(1 - s * s);
+    auto cosines = [&](const HNode& X, const Vec3& dir, double& m, double& cmax) {
+      const double c1 = X.axis.dot(dir), s1 = X.axis.cross(dir).norm();
+      const double cm = X.cos_cone * cd - X.sin_cone * s, sm = X.sin_cone * cd + X.cos_cone * s;  // cone + delta
+      cmax = c1 >= cm ? 1.0 : c1 * cm + s1 * sm;
+      m = (c1 > 0 && X.cos_cone > 0 && c1 * X.cos_cone - s1 * X.sin_cone > 0) ? c1 * cm - s1 * sm : -1.0;
+    };
+    double ma, mb, ca, cb;
+    cosines(A, w, ma, ca);
+    cosines(B, -w, mb, cb);
+    // The expansion needs every receiver to face every source point and vice versa (the kernel never clips):
+    // m > 0, or for a flat cluster the other one on or in front of all its planes (a wall standing on a floor).
+    auto in_front = [&](const HNode& X, const HNode& Y) {
+      return X.flat && -support(Y, -X.axis) + X.axis.dot(Y.c - X.c) >= X.slab_hi - d_.P.scene_eps;
+    };
+    if (!(ma > 0 || in_front(A, B)) || !(mb > 0 || in_front(B, A))) return false;
+    // Error of the second-order expansion per receiver, absolute (F units): the remainder of
+    // (n_i.u)(n_j.u)/|u|^4 is of third order, modelled as s^3 (10 ca cb + 4 ca + 4 cb + 1) / (pi d_min^2) per unit
+    // source area, times kExpansionConstant (calibrated on the test scenes: sphere, closed box, room with block,
+    // Cornell box; test_hierarchy prints the worst ratio of the actual row error to the admitted one: 0.48 at most).
+    const double dmin = D - A.R - B.R, dmax = D + A.R + B.R;
+    const double k_hi = ca * cb / (kPi * dmin * dmin), k_lo = std::max(ma, 0.0) * std::max(mb, 0.0) / (kPi * dmax * dmax);
+    const double e = kExpansionConstant * s * s * s * (10 * ca * cb + 4 * ca + 4 * cb + 1) / (kPi * dmin * dmin);
+    const double la = std::max(lmax_[a], 0.0) / lref_, lb = std::max(lmax_[b], 0.0) / lref_;
+    const double tol = link_tol_;
+    // Accepted when the error times the source's brightness is within the tolerance relative to the link's
+    // smallest value (relative), or is at most kAbsolute of the tolerance (absolute: grazing and distant links).
+    auto ok = [&](double err_a, double err_b) {  // errors per unit area of the source
+      return (err_a * lb <= tol * k_lo || err_a * B.area * lb <= kAbsolute * tol) &&
+             (err_b * la <= tol * k_lo || err_b * A.area * la <= kAbsolute * tol);
+    };
+    if (!ok(e, e)) return false;
+    // Rays cannot certify a shaft better than 1/cluster_rays: if even that would fail, refine without casting.
+    const double e_rays = e + k_hi / std::max(1, o_.cluster_rays);
+    // A link every ray finds blocked carries no light; what the rays may have missed (a transmittance up to
+    // about 1/rays) is admitted when, times the source's brightness, it is within the link tolerance.
+    // Up to kMaxBlockedRays rays are cast to certify a blocked pair (stopping at the first visible one).
+    const double need = k_hi * std::max(B.area * lb, A.area * la) / tol;
+    const int max_rays = need <= kMaxBlockedRays ? int(std::ceil(need)) : 0;
+    const bool rays_could_pass = ok(e_rays, e_rays) || max_rays > 0;
+    const VisResult v = link_visibility(A, B, a, b, loc, rays_could_pass, max_rays);
+    if (v.refine) return false;
+    const double err = e + v.uncertainty * k_hi;
+    const bool blocked = v.V == 0 && v.uncertainty < 0.5;
+    if (blocked) {
+      const double u_rays = v.uncertainty;
+      if (!(k_hi * B.area * u_rays * lb <= tol && k_hi * A.area * u_rays * la <= tol)) return false;
+      const double err_ab = std::min(1.0, k_hi * B.area * u_rays), err_ba = std::min(1.0, k_hi * A.area * u_rays);
+      ++loc.blocked;
+      loc.far.push_back({a, b, 0.0f, float(err_ab), float(err_ba), float(err_ab * lb), float(err_ba * la)});
+      return true;
+    }
+    if (!ok(err, err)) return false;
+    const double err_ab = std::min(1.0, err * B.area), err_ba = std::min(1.0, err * A.area);
+    check_memory();
+    loc.far.push_back({a, b, float(v.V), float(err_ab), float(err_ba), float(err_ab * lb), float(err_ba * la)});
+    return true;
+  }
+
+  // The visible fraction of a far link: 1 if the shaft between the clusters' boxes is empty of occluders,
+  // else a kernel-weighted ray estimate. The one visibility call for clusters (exact visibility may replace it).
+  VisResult link_visibility(const HNode& A, const HNode& B, int a, int b, Local& loc, bool cast_rays, int max_rays) {
+    if (!occlusion_) return {};
+    detail::Shaft sh = detail::make_shaft(A.box, B.box);
+    sh.ni = A.flat ? A.axis : Vec3::Zero();
+    sh.oi = A.flat ? A.axis.dot(A.c) + A.slab_lo : -INFINITY;
+    sh.nj = B.flat ? B.axis : Vec3::Zero();
+    sh.oj = B.flat ? B.axis.dot(B.c) + B.slab_lo : -INFINITY;
+    sh.eps = d_.P.scene_eps;
+    if (!tree_.may_block(sh, -1, -1, &loc.hint)) {
+      ++loc.shaft_clear;
+      return {};
+    }
+    if (!cast_rays) return {1.0, 1.0, true};
+    ++loc.ray_tested;
+    const int R0 = std::max(1, o_.cluster_rays);
+    const std::uint64_t seed = detail::mix(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b));
+    double num = 0, den = 0;
+    int hidden = 0, seen = 0, cast = 0;
+    // R0 rays; while every ray is blocked and more could certify the blocking (max_rays), continue to max_rays.
+    for (int k = 0; k < std::max(R0, max_rays); ++k) {
+      if (k >= R0 && seen > 0) break;
+      ++cast;
+      const std::uint64_t sk = detail::mix(seed + std::uint64_t(k));
+      auto pick = [&](const HNode& nd, std::uint64_t h) {
+        const double u = cum_[nd.begin] + (double(h >> 11) * 0x1.0p-53) * (cum_[nd.end] - cum_[nd.begin]);
+        int k2 = int(std::upper_bound(cum_.begin() + nd.begin + 1, cum_.begin() + nd.end + 1, u) - cum_.begin()) - 1;
+        return d_.perm[std::clamp(k2, nd.begin, nd.end - 1)];
+      };
+      const int pa = pick(A, sk), pb = pick(B, detail::mix(sk ^ 0x5555));
+      detail::sample_patch(g_, d_.P, pa, 1, 1, detail::mix(sk + 1), loc.pa);
+      detail::sample_patch(g_, d_.P, pb, 1, 1, detail::mix(sk + 2), loc.pb);
+      const Vec3 x = loc.pa[0], y = loc.pb[0], dv = y - x;
+      const double cx = g_.normal[pa].dot(dv), cy = -g_.normal[pb].dot(dv);
+      if (!(cx > 0 && cy > 0)) continue;
+      const double r2 = dv.squaredNorm(), wgt = cx * cy / (r2 * r2);
+      const bool h = caster_->occluded(x, y, pa, pb);
+      ++loc.rays;
+      den += wgt;
+      if (h) ++hidden;
+      else {
+        num += wgt;
+        ++seen;
+      }
+    }
+    VisResult r;
+    if (!(den > 0)) return {1.0, 0.5};
+    r.V = num / den;
+    r.uncertainty = (hidden == 0 || seen == 0) ? 1.0 / cast : 0.5;
+    return r;
+  }
+
+  // The exact entry of one patch pair (as the dense assembly computes it) and its visibility. The one
+  // visibility call for patch pairs.
+  void leaf_pair(int i, int j, Local& loc) {
+    const bool swap = g_.area[j] < g_.area[i];
+    const int s = swap ? j : i, t = swap ? i : j;
+    const detail::PairEval e = detail::pair_scalar(d_.P, s, t, etol_);
+    if (e.method == detail::kCulled || !(e.F > 0)) {
+      ++loc.culled;
+      return;
+    }
+    double Fst = e.F, sigma = 0;
+    if (occlusion_) {
+      detail::Shaft sh = detail::make_shaft(pbox_[s], pbox_[t]);
+      sh.ni = d_.P.nrm[s];
+      sh.oi = d_.P.offset[s];
+      sh.nj = d_.P.nrm[t];
+      sh.oj = d_.P.offset[t];
+      sh.eps = d_.P.scene_eps;
+      if (tree_.may_block(sh, s, t, &loc.hint)) {
+        ++loc.pair_ray_tested;
+        const double share = std::max(Fst, Fst * g_.area[s] / g_.area[t]);
+        const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
+        const detail::VisibleRatio v =
+            detail::visible_ratio(g_, d_.P, *caster_, s, t, o_.rays_per_pair * m * m * m * m, loc.sb);
+        loc.rays += v.rays;
+        sigma = Fst * v.sigma;
+        Fst *= v.ratio;
+      } else {
+        ++loc.pair_shaft_clear;
+      }
+    }
+    const double ratio = g_.area[s] / g_.area[t];
+    const double Fts = Fst * ratio, es = e.error, et = es * ratio, ss = sigma, sst = sigma * ratio;
+    check_memory();
+    if (Fst > 0)
+      loc.leaf.push_back(swap ? LeafRecord{i, j, Fts, Fst, et, es, sst, ss} : LeafRecord{i, j, Fst, Fts, es, et, ss, sst});
+  }
+
+  const mesh::PatchGeometry& g_;
+  const HierarchyOptions& o_;
+  HierarchicalOperator::Impl& d_;
+  double etol_;
+  std::size_t limit_;
+
+ public:
+  double link_tol_ = 0;
+
+ private:
+  std::vector<double> lmax_, cum_;
+  std::vector<Box> pbox_;
+  double lref_ = 1;
+  std::shared_ptr<const Visibility> caster_;
+  detail::OccluderTree tree_;
+  bool occlusion_ = false;
+  std::atomic<long long> links_{0};
+  std::atomic<double> done_{0};
+  double total_ = 1;
+  std::mutex progress_mutex_;
+  Clock::time_point last_ = Clock::now();
+};
+
+}  // namespace
+
+std::size_t HierarchicalOperator::Impl::bytes() const {
+  return nodes.capacity() * sizeof(detail::HNode) + perm.capacity() * 4 + leaf_of.capacity() * 4 +
+         far_off.capacity() * 8 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
+         leaf_src.capacity() * 4 + leaf_F.capacity() * 8 + row_sums.capacity() * 8 +
+         std::size_t(n) * (sizeof(Vec3) * 2 + 8 * 5 + 48 + 1) +
+         [&] {
+           std::size_t b = 0;
+           for (const auto& v : P.rule_pts) b += v.capacity() * 32;
+           for (const auto& v : P.rule_off) b += v.capacity() * 4;
+           return b;
+         }();
+}
+
+std::size_t estimate_hierarchy_bytes(std::size_t n, double tolerance) {
+  // Peak process memory measured on the lit cube at tolerance 1e-3 (docs/benchmarks.md, "Scaling"): 259 MB at
+  // 10k patches, 976 MB at 100k, 4.5 GB at 1M, a log-log slope of 0.62 (the links per patch fall as clusters
+  // grow); scaled by (1e-3 / tolerance)^0.3 (links grow as the tolerance shrinks). Occluded scenes need more (the
+  // 10k-patch building: 540 MB); the build checks its links against the limit while it runs.
+  if (n == 0) return 0;
+  const double mb = 300.0 * std::pow(double(n) / 1e4, 0.62) * std::pow(1e-3 / std::clamp(tolerance, 1e-9, 0.5), 0.3);
+  return std::size_t(mb * 1048576.0);
+}
+
+HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const HierarchyOptions& o, HierarchyStats* stats) {
+  const auto t0 = Clock::now();
+  HierarchyStats local;
+  HierarchyStats& st = stats ? *stats : local;
+  st = HierarchyStats{};
+  const int n = g.size();
+  if (!(o.tolerance > 0 && o.tolerance < 1))
+    throw InputError("hierarchical operator: tolerance must be in (0, 1) (got " + std::to_string(o.tolerance) + ")");
+  if (!(o.entry_tolerance >= 0) || !std::isfinite(o.entry_tolerance))
+    throw InputError("hierarchical operator: entry tolerance must be >= 0 (got " + std::to_string(o.entry_tolerance) + ")");
+  if (!(o.max_reflectance < 1))
+    throw InputError("hierarchical operator: max_reflectance must be < 1 (got " + std::to_string(o.max_reflectance) + ")");
+  if (o.rays_per_pair < 1 || o.cluster_rays < 1)
+    throw InputError("hierarchical operator: rays per pair and per cluster link must be >= 1");
+  if (!o.brightness.empty()) {
+    LAMBERT_CHECK(o.brightness.size() == size_t(n), "hierarchical operator: brightness needs one value per patch");
+    for (int p = 0; p < n; ++p)
+      if (!(o.brightness[p] >= 0) || !std::isfinite(o.brightness[p]))
+        throw InputError("hierarchical operator: brightness of patch " + std::to_string(p) + " is " +
+                         std::to_string(o.brightness[p]) + " (must be finite and >= 0)");
+  }
+  const MemoryLimit sys = o.max_bytes ? MemoryLimit{o.max_bytes, "max_bytes"} : system_memory_limit();
+  st.bytes_estimate = estimate_hierarchy_bytes(std::size_t(n), o.tolerance);
+  if (st.bytes_estimate > sys.bytes)
+    throw InputError("hierarchical operator: " + std::to_string(n) + " patches at tolerance " + std::to_string(o.tolerance) +
+                     " are estimated to need " + std::to_string(st.bytes_estimate >> 20) + " MB, more than the " +
+                     std::to_string(sys.bytes >> 20) + " MB available (" + sys.source +
+                     "); raise --hierarchy-tolerance, use fewer patches (a larger --max-edge) or give the process more memory");
+  st.patches = n;
+  st.tolerance = o.tolerance;
+  st.dense_pairs_equivalent = (long long)n * (n - 1) / 2;
+  const double etol = o.entry_tolerance > 0 ? o.entry_tolerance : default_tolerance(o.max_reflectance);
+  st.entry_tolerance = etol;
+  const double amplification = o.max_reflectance > 0 ? o.max_reflectance / (1 - o.max_reflectance) : 1.0;
+  st.link_tolerance = o.tolerance / std::max(1.0, amplification);
+
+  HierarchicalOperator op;
+  HierarchicalOperator::Impl& d = *op.d_;
+  d.g = &g;
+  d.n = n;
+  if (n == 0) return op;
+  auto body = [&] {
+    const auto t_tree = Clock::now();
+    d.P = detail::prepare(g);
+    d.perm.resize(n);
+    std::iota(d.perm.begin(), d.perm.end(), 0);
+    d.nodes.reserve(size_t(2 * n));
+    TreeBuilder tb{g, d.nodes, d.perm, {}};
+    tb.pbox.resize(n);
+    for (int p = 0; p < n; ++p)
+      for (const Vec3& v : g.polygon(p)) tb.pbox[p].add(v);
+    tb.build(0, n, -1, 0);
+    d.leaf_of.assign(n, -1);
+    for (int k = 0; k < int(d.nodes.size()); ++k) {
+      st.levels = std::max(st.levels, d.nodes[k].level + 1);
+      if (d.nodes[k].leaf()) d.leaf_of[d.perm[d.nodes[k].begin]] = k;
+    }
+    st.nodes = int(d.nodes.size());
+    st.seconds_tree = since(t_tree);
+
+    const auto t_links = Clock::now();
+    Refiner rf(g, o, d, etol, sys.bytes);
+    rf.link_tol_ = st.link_tolerance;
+    rf.setup(st);
+    rf.run();
+    // Gather the records, sorted: the stored operator does not depend on the thread count.
+    std::vector<FarRecord> far;
+    std::vector<LeafRecord> leaf;
+    for (Local& l : rf.locals) {
+      far.insert(far.end(), l.far.begin(), l.far.end());
+      leaf.insert(leaf.end(), l.leaf.begin(), l.leaf.end());
+      st.pairs_culled += l.culled;
+      st.links_shaft_clear += l.shaft_clear;
+      st.links_ray_tested += l.ray_tested;
+      st.rays_cast += l.rays;
+      st.links_blocked += l.blocked;
+      st.pairs_ray_tested += l.pair_ray_tested;
+      st.pairs_shaft_clear += l.pair_shaft_clear;
+      std::vector<FarRecord>().swap(l.far);
+      std::vector<LeafRecord>().swap(l.leaf);
+    }
+    st.far_links = (long long)far.size() - st.links_blocked;
+    st.leaf_links = (long long)leaf.size();
+    st.far_links_per_level.assign(size_t(st.levels), 0);
+    const int nn = int(d.nodes.size());
+    std::vector<double> err(nn, 0.0), lerr(nn, 0.0);  // admitted per receiver node
+    {
+      std::vector<std::pair<std::int64_t, std::pair<int, float>>> dir;  // (receiver << 32 | source, vis)
+      dir.reserve(far.size() * 2);
+      for (const FarRecord& r : far) {
+        if (r.vis > 0) {  // blocked links (vis 0) carry nothing: only their admitted error is kept
+          dir.push_back({(std::int64_t(r.a) << 32) | std::int64_t(r.b), {r.b, r.vis}});
+          dir.push_back({(std::int64_t(r.b) << 32) | std::int64_t(r.a), {r.a, r.vis}});
+        }
+        err[r.a] += r.err_ab;
+        err[r.b] += r.err_ba;
+        lerr[r.a] += r.lerr_ab;
+        lerr[r.b] += r.lerr_ba;
+        if (r.vis > 0) ++st.far_links_per_level[size_t(std::max(d.nodes[r.a].level, d.nodes[r.b].level))];
+      }
+      std::vector<FarRecord>().swap(far);
+      tbb::parallel_sort(dir.begin(), dir.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+      d.far_off.assign(size_t(nn) + 1, 0);
+      d.far_src.resize(dir.size());
+      d.far_vis.resize(dir.size());
+      for (size_t k = 0; k < dir.size(); ++k) {
+        ++d.far_off[size_t(dir[k].first >> 32) + 1];
+        d.far_src[k] = dir[k].second.first;
+        d.far_vis[k] = dir[k].second.second;
+      }
+      for (int k = 0; k < nn; ++k) d.far_off[k + 1] += d.far_off[k];
+    }
+    {
+      std::vector<std::pair<std::int64_t, double>> dir;
+      dir.reserve(leaf.size() * 2);
+      st.row_visibility_sigma.assign(n, 0.0);
+      for (const LeafRecord& r : leaf) {
+        st.row_visibility_sigma[r.i] += r.sig_ij * r.sig_ij;
+        st.row_visibility_sigma[r.j] += r.sig_ji * r.sig_ji;
+        dir.push_back({(std::int64_t(r.i) << 32) | std::int64_t(r.j), r.Fij});
+        dir.push_back({(std::int64_t(r.j) << 32) | std::int64_t(r.i), r.Fji});
+        err[d.leaf_of[r.i]] += r.err_ij;
+        err[d.leaf_of[r.j]] += r.err_ji;
+      }
+      std::vector<LeafRecord>().swap(leaf);
+      tbb::parallel_sort(dir.begin(), dir.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+      d.leaf_off.assign(size_t(n) + 1, 0);
+      d.leaf_src.resize(dir.size());
+      d.leaf_F.resize(dir.size());
+      for (size_t k = 0; k < dir.size(); ++k) {
+        ++d.leaf_off[size_t(dir[k].first >> 32) + 1];
+        d.leaf_src[k] = int(dir[k].first & 0xFFFFFFFF);
+        d.leaf_F[k] = dir[k].second;
+      }
+      for (int k = 0; k < n; ++k) d.leaf_off[k + 1] += d.leaf_off[k];
+    }
+    // Admitted error per patch: the sum over its ancestors' links (push down).
+    for (int k = 1; k < nn; ++k) {
+      err[k] += err[d.nodes[k].parent];
+      lerr[k] += lerr[d.nodes[k].parent];
+    }
+    for (double& v : st.row_visibility_sigma) {
+      v = std::sqrt(v);
+      st.row_visibility_sigma_max = std::max(st.row_visibility_sigma_max, v);
+    }
+    st.row_error.resize(n);
+    for (int p = 0; p < n; ++p) {
+      st.row_error[p] = err[d.leaf_of[p]];
+      st.row_error_max = std::max(st.row_error_max, err[d.leaf_of[p]]);
+      st.radiance_error_max = std::max(st.radiance_error_max, lerr[d.leaf_of[p]]);
+    }
+    st.seconds_links = since(t_links);
+    // Row sums: one product with the ones vector.
+    d.row_sums.assign(n, 0.0);
+    Eigen::VectorXd ones = Eigen::VectorXd::Ones(n), rs(n);
+    op.apply(ones, rs);
+    for (int p = 0; p < n; ++p) d.row_sums[p] = rs[p];
+    st.row_sum_min = rs.minCoeff();
+    st.row_sum_max = rs.maxCoeff();
+    st.row_sum_mean = rs.mean();
+  };
+  if (o.threads > 0) {
+    tbb::task_arena arena(o.threads);
+    arena.execute(body);
+  } else {
+    body();
+  }
+  if (o.progress) o.progress(1.0);
+  st.bytes = d.bytes();
+  st.seconds_total = since(t0);
+  return op;
+}
+
+}  // namespace lambert::formfactor

@@ -1,0 +1,54 @@
+#pragma once
+// Internals of the hierarchical operator (hierarchy.hpp): the cluster tree and the stored links.
+#include <cstdint>
+#include <vector>
+
+#include "internal.hpp"
+#include "lambert/formfactor/hierarchy.hpp"
+#include "shaft.hpp"
+
+namespace lambert::formfactor {
+
+namespace detail {
+
+struct HNode {
+  Vec3 c = Vec3::Zero();     // area centroid (m)
+  Vec3 S = Vec3::Zero();     // sum of area * normal over the patches (m^2)
+  Vec3 axis = Vec3::UnitZ(); // normal cone axis (unit)
+  double cone = 0;           // normal cone half-angle (radians), pi = any direction
+  double cos_cone = 1, sin_cone = 0;
+  double R = 0;              // radius of a sphere about c holding every corner (m)
+  double area = 0;           // m^2
+  double slab_lo = 0, slab_hi = 0;  // flat nodes: range of axis . (x - c) over the corners (m)
+  bool flat = false;         // every normal within kFlatCone of axis
+  Box box;
+  int left = -1, right = -1;  // children (leaf: -1)
+  int begin = 0, end = 0;     // patches perm[begin, end)
+  int parent = -1, level = 0;
+  bool leaf() const { return left < 0; }
+};
+
+constexpr double kFlatCone = 1e-7;  // radians
+
+}  // namespace detail
+
+struct HierarchicalOperator::Impl {
+  const mesh::PatchGeometry* g = nullptr;
+  int n = 0;
+  detail::PatchData P;
+  std::vector<detail::HNode> nodes;  // pre-order: parents before children
+  std::vector<int> perm;             // patches in tree order
+  std::vector<int> leaf_of;          // patch -> its leaf node
+  // Far links per receiver node (CSR over nodes, sorted by source): the source node and the visible fraction.
+  std::vector<std::int64_t> far_off;
+  std::vector<int> far_src;
+  std::vector<float> far_vis;
+  // Exact leaf entries per patch (CSR over patches, sorted by j): F_ij.
+  std::vector<std::int64_t> leaf_off;
+  std::vector<int> leaf_src;
+  std::vector<double> leaf_F;
+  std::vector<double> row_sums;
+  std::size_t bytes() const;
+};
+
+}  // namespace lambert::formfactor

@@ -1,0 +1,296 @@
+// The hierarchical operator (formfactor/hierarchy.hpp) against the dense matrix and exact answers.
+#include <gtest/gtest.h>
+
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <random>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <tbb/task_arena.h>
+
+#include "cli_util.hpp"
+
+#include "lambert/formfactor/assemble.hpp"
+#include "lambert/formfactor/hierarchy.hpp"
+#include "lambert/io/readers.hpp"
+#include "lambert/mesh/geometry.hpp"
+#include "lambert/mesh/prepare.hpp"
+#include "lambert/mesh/shapes.hpp"
+#include "lambert/solver/solve.hpp"
+
+namespace lambert::formfactor {
+namespace {
+
+mesh::PatchGeometry polys(const mesh::shapes::Polygons& p) { return mesh::PatchGeometry::from_polygons(p); }
+
+mesh::Scene cornell(double max_edge) {
+  mesh::PolygonSoup soup = io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj");
+  mesh::PrepareOptions po;
+  po.max_edge = max_edge;
+  return mesh::prepare_and_build(soup, po);
+}
+
+struct Case {
+  const char* name;
+  mesh::PatchGeometry g;
+};
+
+std::vector<Case>& cases() {
+  static std::vector<Case> c = [] {
+    std::vector<Case> v;
+    v.push_back({"sphere", polys(mesh::shapes::icosphere(3, 1.0, true))});
+    v.push_back({"furnace_box", polys(mesh::shapes::box(Vec3::Zero(), Vec3::Ones(), 12, true))});
+    v.push_back({"room_with_block", polys(mesh::shapes::room_with_block(10, 4))});
+    v.push_back({"cornell_box", cornell(0.12).geometry});
+    return v;
+  }();
+  return c;
+}
+
+// |F~ x - F x| <= (admitted row error) max|x| for every row, x >= 0: each far link's relative error estimate
+// bounds its entries' errors, and the leaf entries are the dense ones (same kernel, same ray seeds).
+// Tolerance: the admitted row error itself (plus 1e-12 for summation order), the property under test.
+TEST(Hierarchy, MatchesDenseWithinAdmittedError) {
+  for (Case& c : cases()) {
+    const int n = c.g.size();
+    Options fo;
+    fo.tolerance = 1e-10;
+    const DenseMatrixOperator F = assemble(c.g, fo);
+    HierarchyOptions ho;
+    ho.tolerance = 1e-2;
+    ho.entry_tolerance = 1e-10;
+    HierarchyStats st;
+    const HierarchicalOperator H = build_hierarchy(c.g, ho, &st);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> U(0, 1);
+    for (int trial = 0; trial < 2; ++trial) {
+      Eigen::VectorXd x(n), y0(n), y1(n);
+      for (int i = 0; i < n; ++i) x[i] = trial == 0 ? 1.0 : U(rng);
+      F.apply(x, y0);
+      H.apply(x, y1);
+      double worst = 0, worst_ratio = 0;
+      int at = 0;
+      for (int i = 0; i < n; ++i) {
+        worst = std::max(worst, std::abs(y1[i] - y0[i]));
+        // Per row: the difference against that row's admitted error (1e-12: summation order).
+        const double ratio = std::abs(y1[i] - y0[i]) / (st.row_error[i] * x.maxCoeff() + 1e-12);
+        if (ratio > worst_ratio) worst_ratio = ratio, at = i;
+      }
+      std::printf("%s: %d patches, %lld far links, %lld leaf links (dense pairs %lld), levels %d, admitted row error "
+                  "%.2e, max |dFx| %.2e, worst ratio to the row's admitted error %.3f at %d (trial %d)\n",
+                  c.name, n, st.far_links, st.leaf_links, st.dense_pairs_equivalent, st.levels, st.row_error_max, worst,
+                  worst_ratio, at, trial);
+      EXPECT_LE(worst_ratio, 1.0) << c.name << ": row " << at << " dense " << y0[at] << " hierarchical " << y1[at]
+                                  << " admitted " << st.row_error[at] << " trial " << trial;
+      EXPECT_LT(st.far_links + st.leaf_links, st.dense_pairs_equivalent) << c.name << ": no saving over dense";
+    }
+  }
+}
+
+
+// Solves with the hierarchical operator; returns the radiance (channel 0) and the error bound of
+// docs/physics.md §5 from the hierarchy's admitted row error, its visibility (3 sigma) and the residual.
+struct HSolve {
+  Eigen::VectorXd L;
+  double bound = 0;
+  HierarchyStats st;
+};
+HSolve solve_h(const mesh::PatchGeometry& g, double rho, const Eigen::VectorXd& Le, double tol) {
+  const int n = g.size();
+  HierarchyOptions ho;
+  ho.tolerance = tol;
+  ho.entry_tolerance = 1e-12;
+  ho.max_reflectance = rho;
+  HSolve r;
+  const HierarchicalOperator H = build_hierarchy(g, ho, &r.st);
+  solver::Options so;
+  so.tolerance = 1e-12;
+  so.max_iterations = 2000;
+  ColorField E(n, 3);
+  for (int c = 0; c < 3; ++c) E.col(c) = Le;
+  const solver::Solution sol = solver::solve(H, g.area, ColorField::Constant(n, 3, rho), E, so);
+  EXPECT_TRUE(sol.converged);
+  r.L = sol.radiance.col(0);
+  const double delta = r.st.row_error_max + 3 * r.st.row_visibility_sigma_max;
+  r.bound = (rho * delta + sol.channels[0].residual_max) / (1 - rho * std::max(1.0, r.st.row_sum_max));
+  return r;
+}
+
+// White furnace: a closed room with a floating block, uniform E0 and rho: L = E0 / (1 - rho) everywhere.
+// Push-pull must neither lose nor create energy beyond the admitted error. Tolerance: the bound above.
+TEST(Hierarchy, ClosedFurnaceStaysAtClosedForm) {
+  const mesh::PatchGeometry g = polys(mesh::shapes::room_with_block(12, 4));
+  const double rho = 0.5, E0 = 1;
+  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 1e-2);
+  const double exact = E0 / (1 - rho);
+  double worst = 0;
+  int at = 0;
+  for (int i = 0; i < g.size(); ++i)
+    if (std::abs(r.L[i] - exact) / exact > worst) worst = std::abs(r.L[i] - exact) / exact, at = i;
+  std::printf("furnace: %lld far links, worst relative error %.2e at %d, bound %.2e\n", r.st.far_links, worst, at, r.bound);
+  EXPECT_GT(r.st.far_links, 0) << "no cluster link: the test would not exercise push-pull";
+  EXPECT_LE(worst, r.bound) << "patch " << at << " L " << r.L[at] << " exact " << exact;
+  EXPECT_LT(r.bound, 0.05) << "bound too loose to guard anything";
+}
+
+// The emitting sphere at rho = 0.999 (convex: no visibility): L = E0 / (1 - rho) = 1000 E0. The solve amplifies
+// a row error 1000-fold; the knob is in radiance terms, so the links refine to tolerance (1 - rho) / rho. Without
+// that factor the same tolerance admits row sums above 1 / rho and the solution is wrong by 100% or diverges.
+// Tolerance of the check: the knob (1e-2) on the relative radiance, and the stated bound.
+TEST(Hierarchy, SphereAtRho0999WithinTolerance) {
+  const mesh::PatchGeometry g = polys(mesh::shapes::icosphere(3, 1.0, true));
+  const double rho = 0.999, E0 = 1;
+  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 1e-2);
+  const double exact = E0 / (1 - rho);
+  double worst = 0;
+  int at = 0;
+  for (int i = 0; i < g.size(); ++i)
+    if (std::abs(r.L[i] - exact) / exact > worst) worst = std::abs(r.L[i] - exact) / exact, at = i;
+  std::printf("sphere rho 0.999: link tolerance %.1e, %lld far links, %lld leaf links, admitted %.2e, worst %.2e, "
+              "bound %.2e\n", r.st.link_tolerance, r.st.far_links, r.st.leaf_links, r.st.row_error_max, worst, r.bound);
+  EXPECT_LE(worst, 1e-2) << "patch " << at << " L " << r.L[at];
+  EXPECT_GT(r.bound, 0) << "rho x row sum >= 1: no bound";
+  EXPECT_LE(worst, r.bound) << "patch " << at << " L " << r.L[at];
+}
+
+// apply() gives bit-identical results for any thread count (and so does the build).
+TEST(Hierarchy, DeterministicForAnyThreadCount) {
+  const mesh::PatchGeometry g = polys(mesh::shapes::room_with_block(8, 3));
+  const int n = g.size();
+  Eigen::VectorXd x(n);
+  for (int i = 0; i < n; ++i) x[i] = 1 + std::sin(0.37 * i);
+  Eigen::VectorXd y[2];
+  for (int t = 0; t < 2; ++t) {
+    tbb::task_arena arena(t + 1);
+    arena.execute([&] {
+      HierarchyOptions ho;
+      ho.tolerance = 1e-2;
+      const HierarchicalOperator H = build_hierarchy(g, ho);
+      y[t].resize(n);
+      H.apply(x, y[t]);
+    });
+  }
+  for (int i = 0; i < n; ++i) ASSERT_EQ(y[0][i], y[1][i]) << "row " << i << ": 1 thread vs 2 threads";
+}
+
+// A build that cannot fit is refused before anything large is allocated, naming the estimate and what to change.
+TEST(Hierarchy, RefusesWhenEstimateExceedsMemory) {
+  const mesh::PatchGeometry g = polys(mesh::shapes::box(Vec3::Zero(), Vec3::Ones(), 20, true));
+  HierarchyOptions ho;
+  ho.max_bytes = 1 << 20;  // 1 MB for 2,400 patches (estimate ~125 MB)
+  try {
+    build_hierarchy(g, ho);
+    FAIL() << "no refusal";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("estimated to need"), std::string::npos) << m;
+    EXPECT_NE(m.find("--hierarchy-tolerance"), std::string::npos) << m;
+    EXPECT_NE(m.find("--max-edge"), std::string::npos) << m;
+  }
+}
+
+// Gauss-Seidel sweeps rows; the hierarchical operator stores none: refused by name, and auto never picks it.
+TEST(Hierarchy, GaussSeidelRefusedWithoutRows) {
+  const mesh::PatchGeometry g = polys(mesh::shapes::box(Vec3::Zero(), Vec3::Ones(), 3, true));
+  const HierarchicalOperator H = build_hierarchy(g);
+  EXPECT_FALSE(H.has_rows());
+  const int n = g.size();
+  solver::Options so;
+  so.method = solver::Method::GaussSeidel;
+  EXPECT_THROW(solver::solve(H, g.area, ColorField::Constant(n, 3, 0.5), ColorField::Constant(n, 3, 1.0), so), InputError);
+  so.method = solver::Method::Auto;
+  const solver::Solution sol = solver::solve(H, g.area, ColorField::Constant(n, 3, 0.5), ColorField::Constant(n, 3, 1.0), so);
+  EXPECT_NE(sol.method, solver::Method::GaussSeidel);
+  EXPECT_TRUE(sol.converged);
+}
+
+}  // namespace
+
+// `lambert formfactors --operator hierarchical` streams i,j,F_ij aggregated to input faces; it must equal the
+// dense output within the admitted row error (an entry's error is at most its row's), and --min-factor must drop
+// exactly the entries below it.
+class HierarchyCli : public test::Cli {};
+
+std::map<std::pair<int, int>, double> read_csv(const std::string& path) {
+  std::map<std::pair<int, int>, double> m;
+  std::ifstream f(path);
+  std::string line;
+  while (std::getline(f, line)) {
+    int i, j;
+    double v;
+    char c1, c2;
+    std::istringstream is(line);
+    if (is >> i >> c1 >> j >> c2 >> v) m[{i, j}] = v;
+  }
+  return m;
+}
+
+TEST_F(HierarchyCli, FormfactorsStreamingMatchesDense) {
+  const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
+  const auto d = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("d.csv") + " --operator dense -q");
+  ASSERT_EQ(d.status, 0) << d.output;
+  const auto h = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("h.csv") +
+                           " --operator hierarchical --hierarchy-tolerance 1e-2 --stats " + path("h.json") + " -q");
+  ASSERT_EQ(h.status, 0) << h.output;
+  const nlohmann::json js = nlohmann::json::parse(std::ifstream(path("h.json")));
+  ASSERT_EQ(js["operator"]["kind"], "hierarchical");
+  const double admitted = js["hierarchy"]["row_error_max"].get<double>() + 3 * js["hierarchy"]["row_visibility_sigma_max"].get<double>();
+  const auto D = read_csv(path("d.csv")), H = read_csv(path("h.csv"));
+  ASSERT_GT(D.size(), 100u);
+  double worst = 0;
+  std::pair<int, int> at{-1, -1};
+  for (const auto& [k, v] : D) {
+    const auto it = H.find(k);
+    const double e = std::abs((it == H.end() ? 0.0 : it->second) - v);
+    if (e > worst) worst = e, at = k;
+  }
+  for (const auto& [k, v] : H)
+    if (!D.count(k) && v > worst) worst = v, at = k;
+  std::printf("formfactors: %zu dense entries, %zu hierarchical, worst difference %.2e at (%d, %d), admitted %.2e, "
+              "%lld cluster links\n",
+              D.size(), H.size(), worst, at.first, at.second, admitted, js["hierarchy"]["far_links"].get<long long>());
+  EXPECT_GT(js["hierarchy"]["far_links"].get<long long>(), 100) << "too few cluster links to test the streaming";
+  EXPECT_LE(worst, admitted) << "entry (" << at.first << ", " << at.second << ")";
+  // --min-factor: only entries >= 0.01, and all of them.
+  const auto m = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("m.csv") +
+                           " --operator hierarchical --hierarchy-tolerance 1e-2 --min-factor 0.01 -q");
+  ASSERT_EQ(m.status, 0) << m.output;
+  const auto M = read_csv(path("m.csv"));
+  for (const auto& [k, v] : M) EXPECT_GE(v, 0.01) << k.first << "," << k.second;
+  size_t expected = 0;
+  for (const auto& [k, v] : H) expected += v >= 0.01;
+  EXPECT_EQ(M.size(), expected);
+  EXPECT_GT(M.size(), 0u);
+  EXPECT_LT(M.size(), H.size());
+}
+
+// --operator auto prints its choice and why; an impossible request is refused with the estimate (exit 1).
+TEST_F(HierarchyCli, OperatorChoicePrintedAndUnsupportedCombinationsRefused) {
+  const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
+  const auto a = test::run("solve " + scene + " -o " + path("a.vtu"));
+  ASSERT_EQ(a.status, 0) << a.output;
+  EXPECT_NE(a.output.find("operator     dense (auto: "), std::string::npos) << a.output;
+  const auto b = test::run("solve " + scene + " -o " + path("b.vtu") + " --operator hierarchical --adaptive-budget 500");
+  EXPECT_EQ(b.status, 1) << b.output;
+  EXPECT_NE(b.output.find("adaptive refinement"), std::string::npos) << b.output;
+  const auto c = test::run("solve " + scene + " -o " + path("c.vtu") + " --operator hierarchical --method gauss-seidel");
+  EXPECT_EQ(c.status, 1) << c.output;
+  EXPECT_NE(c.output.find("does not store"), std::string::npos) << c.output;
+  const auto d = test::run("solve " + scene + " -o " + path("d.vtu") + " --operator sparse");
+  EXPECT_EQ(d.status, 1) << d.output;
+  // Too many patches for the memory available: refused before refining, with the patch count that fits.
+  for (const char* op : {"dense", "hierarchical"}) {
+    const auto e = test::run("solve " + scene + " -o " + path("e.vtu") + " --max-edge 0.0003 --operator " + op);
+    EXPECT_EQ(e.status, 1) << op << ": " << e.output;
+    EXPECT_NE(e.output.find("fit in memory"), std::string::npos) << op << ": " << e.output;
+    EXPECT_NE(e.output.find("use a larger --max-edge"), std::string::npos) << op << ": " << e.output;
+  }
+}
+
+}  // namespace lambert::formfactor
