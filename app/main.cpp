@@ -104,7 +104,14 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"adaptive", "point", "gauss1", "gauss2", "gauss3", "gauss4", "gauss5", "gauss6",
                                "gauss7", "gauss8"}))
         ->capture_default_str();
-    sub->add_option("--rays", common.ff.rays_per_pair, "Visibility rays per pair that may be partially occluded")
+    sub->add_option("--visibility", common.visibility,
+                    "Partially occluded pairs: exact (occluders clipped out of the contour integral, adaptive outer "
+                    "rule to the form-factor tolerance), rays (ray estimate, --rays per pair), auto (exact, rays "
+                    "only for pairs whose whole form factor is below the tolerance)")
+        ->check(CLI::IsMember({"auto", "exact", "rays"}))
+        ->capture_default_str();
+    sub->add_option("--rays", common.ff.rays_per_pair,
+                    "Visibility rays per pair that may be partially occluded (the rays path of --visibility)")
         ->check(Positive)
         ->capture_default_str();
   };

@@ -8,6 +8,7 @@ PACKAGES=(
   libopenmesh-dev      # polygon mesh (patches, adjacency)
   libcgal-dev          # geometry: convex hulls, mesh processing
   libembree-dev        # ray tracing for visibility
+  libpolyclipping-dev  # Clipper: 2D Boolean operations (union of projected occluders, exact visibility)
   libvtk9-dev          # .vtu output for ParaView
   libtbb-dev           # threads
   libcli11-dev         # command line
