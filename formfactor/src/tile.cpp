@@ -313,20 +313,17 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                       exact_hidden_pair(g_.polygon(src), pr.P.nrm[src], area[src], convex_[src] != 0, g_.polygon(tgt),
                                         pr.P.nrm[tgt], convex_[tgt] != 0, b.occ, tol, scale_, *b.exact);
                   const double to_ij = swap ? area[j] / area[i] : 1.0;  // F_ij = F_st * to_ij
-                  const double Fst = F(i, j) / to_ij;
-                  double Fv = Fst;
                   switch (r.outcome) {
                     case ExactPairResult::kClear: ++c.exact_clear; break;
-                    case ExactPairResult::kHidden: ++c.exact_hidden; Fv = 0; break;
+                    case ExactPairResult::kHidden: ++c.exact_hidden; F(i, j) = 0; break;
                     case ExactPairResult::kIntegrated:
                       ++c.exact_integrated;
                       // The hidden part cannot exceed the whole: below zero only by the two integrals' errors.
-                      Fv = std::max(0.0, Fst - r.H);
+                      F(i, j) = std::max(0.0, F(i, j) - r.H * to_ij);
                       break;
                   }
                   c.exact_points += r.points;
                   c.exact_over += r.over_tolerance;
-                  F(i, j) = Fv * to_ij;
                   b.err[slot(i, j)] += r.error * to_ij;
                   c.exact_seconds += seconds_since(t_exact);
                   continue;

@@ -81,7 +81,9 @@ struct Options {
   int order = 1;            // Rule::Gauss: points per side of the source rule, 1..8
   const Reuse* reuse = nullptr;  // null: compute every pair
   bool visibility = true;   // false: every pair is treated as unoccluded
-  VisibilityMethod visibility_method = VisibilityMethod::Auto;  // exact, rays or auto (see above)
+  // exact, rays or auto (see above). Default rays: the exact path is ~100x the cost of a 16-ray estimate per pair
+  // (docs/benchmarks.md, "Exact visibility"), too slow to be the default yet.
+  VisibilityMethod visibility_method = VisibilityMethod::Rays;
   int rays_per_pair = 16;   // rays R for a pair that may be occluded: R stratified points on each patch, paired by a
                             // seeded random permutation (x16 / x81 for pairs carrying >= 2% / 10% of a row)
   int threads = 0;          // 0 = all cores (or the caller's tbb::global_control); otherwise a task_arena of this size
@@ -118,7 +120,7 @@ struct Stats {
   long long pairs_orientation_culled = 0;  // one is behind the other's plane (or coplanar): F = 0, no work
   long long pairs_shaft_culled = 0;        // potentially visible but proven unoccluded by shaft culling: no rays
   long long pairs_ray_tested = 0;          // visible fraction estimated with rays
-  std::string visibility_method = "auto";  // Options::visibility_method
+  std::string visibility_method = "rays";  // Options::visibility_method
   // Exact path (pairs not shaft-culled that took it): proven clear by the convex-hull test, proven hidden by one
   // occluder, integrated by the adaptive outer rule (its point evaluations, pairs stopped above tolerance).
   long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;
