@@ -445,10 +445,22 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       if (change > best) best = change, l.best = d, l.value = v;
       l.err = std::max(l.err, change);
     }
-    if (!(l.err > 0) && e.Q == 0 && outcome == ExactPairResult::kIntegrated) {
+    if (!(best > 0)) {  // no direction changes anything: bisect the longest side (the samples carry no information)
+      double longest = -1;
+      for (int d = 0; d < l.dirs; ++d) {
+        const double len = e.quad ? (d == 0 ? (e.v[1] - e.v[0]).norm() + (e.v[2] - e.v[3]).norm()
+                                            : (e.v[3] - e.v[0]).norm() + (e.v[2] - e.v[1]).norm())
+                                  : (e.v[(d + 1) % 3] - e.v[d]).norm();
+        if (len > longest) longest = len, l.best = d, l.value = l.kids[2 * d].Q + l.kids[2 * d + 1].Q;
+      }
+    }
+    const double A = e.quad ? std::abs((e.v[2] - e.v[0]).cross(e.v[3] - e.v[1]).dot(ns)) * 0.5
+                            : 0.5 * std::abs((e.v[1] - e.v[0]).cross(e.v[2] - e.v[0]).dot(ns));
+    // Forced refinement down to 1/256 of the source (a shadow narrower than that may still be missed when
+    // every sample of its element is outside it; the hull test keeps such elements "mixed" only while an
+    // occluder can still reach them).
+    if (!(l.err > 0) && e.Q == 0 && outcome == ExactPairResult::kIntegrated && A > area_s / 256) {
       const Vec3 c = e.quad ? bilinear(e.v, 0.5, 0.5) : Vec3((e.v[0] + e.v[1] + e.v[2]) / 3.0);
-      const double A = e.quad ? std::abs((e.v[2] - e.v[0]).cross(e.v[3] - e.v[1]).dot(ns)) * 0.5
-                              : 0.5 * std::abs((e.v[1] - e.v[0]).cross(e.v[2] - e.v[0]).dot(ns));
       l.err = A * contour_sum(c, ns, ct);
     }
     total_err += l.err;
