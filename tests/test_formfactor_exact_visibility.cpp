@@ -209,7 +209,7 @@ TEST(ExactVisibilityAssembly, BitIdenticalForAnyThreadCount) {
   const auto g = mesh::PatchGeometry::from_polygons(room_scene(3, 1));
   ff::Options o;
   o.visibility_method = ff::VisibilityMethod::Exact;
-  o.tolerance = 1e-6;
+  o.tolerance = 1e-5;
   ff::Stats s1, s2;
   o.threads = 1;
   const auto F1 = ff::assemble(g, o, &s1).matrix();

@@ -247,7 +247,9 @@ struct Elem {
   bool quad = false;
   double Q = 0;  // the element's own rule applied to F_hidden
   bool has_Q = false;
+  int kind = -1;  // what its samples saw: 0 nothing hidden, 1 the whole target hidden, 2 partly (or mixed)
 };
+int combine(int a, int b) { return a < 0 ? b : b < 0 ? a : a == b ? a : 2; }
 struct Leaf {
   Elem e;
   std::array<Elem, 6> kids;  // bisections: pairs (kids[2d], kids[2d+1]) for direction d
@@ -256,6 +258,10 @@ struct Leaf {
   double value = 0, err = 0;  // value of the best bisection; max over directions of |Q - bisection|
   bool operator<(const Leaf& o) const { return err < o.err; }
 };
+
+// Forced refinement of shadow-reachable elements whose samples see no shadow, down to this fraction of the
+// source's area.
+constexpr double kForcedArea = 1.0 / 256;
 
 constexpr double kG0 = 0.21132486540518711775, kG1 = 0.78867513459481288225;  // 2-point Gauss on [0, 1]
 
@@ -374,13 +380,17 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   res.outcome = ExactPairResult::kIntegrated;
   const int root_count = int(pool.size());
   int cur_begin = 0, cur_count = 0;  // the occluder list f() uses
+  int sample_kind = -1;  // combined kind of the samples since the last reset
   auto f = [&](const Vec3& p) {
     ++res.points;
-    return hidden_point_to_polygon(p, ns, ct, nt, t_convex,
-                                   std::span<const Occluder>(pool.data() + cur_begin, size_t(cur_count)), S);
+    const double h = hidden_point_to_polygon(p, ns, ct, nt, t_convex,
+                                             std::span<const Occluder>(pool.data() + cur_begin, size_t(cur_count)), S);
+    sample_kind = combine(sample_kind, !(h > 0) ? 0 : h >= (1 - 1e-9) * contour_sum(p, ns, ct) ? 1 : 2);
+    return h;
   };
   auto rule = [&](Elem& e) {
     double q = 0;
+    sample_kind = -1;
     if (e.quad) {
       for (double a : {kG0, kG1})
         for (double b : {kG0, kG1}) {
@@ -396,10 +406,12 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       for (int k = 0; k < 3; ++k) q += (A / 3) * f(0.5 * (c + e.v[k]));
       e.Q = q;
       e.has_Q = true;
+      e.kind = sample_kind;
       return;
     }
     e.Q = q;
     e.has_Q = true;
+    e.kind = sample_kind;
   };
   std::priority_queue<Leaf> heap;
   double total_err = 0;
@@ -459,9 +471,13 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // Forced refinement down to 1/256 of the source (a shadow narrower than that may still be missed when
     // every sample of its element is outside it; the hull test keeps such elements "mixed" only while an
     // occluder can still reach them).
-    if (!(l.err > 0) && e.Q == 0 && outcome == ExactPairResult::kIntegrated && A > area_s / 256) {
+    int kind = e.kind;
+    for (int d = 0; d < 2 * l.dirs; ++d) kind = combine(kind, l.kids[d].kind);
+    // Every sample saw nothing hidden, or the whole target hidden, although the element is neither provably
+    // clear nor provably hidden: a shadow edge (or a gap between shadows) may pass between the samples.
+    if ((kind == 0 || kind == 1) && outcome == ExactPairResult::kIntegrated && A > area_s * kForcedArea) {
       const Vec3 c = e.quad ? bilinear(e.v, 0.5, 0.5) : Vec3((e.v[0] + e.v[1] + e.v[2]) / 3.0);
-      l.err = A * contour_sum(c, ns, ct);
+      l.err = std::max(l.err, A * contour_sum(c, ns, ct));
     }
     total_err += l.err;
     heap.push(l);
