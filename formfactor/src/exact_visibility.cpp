@@ -261,7 +261,7 @@ struct Leaf {
 
 // Forced refinement of shadow-reachable elements whose samples see no shadow, down to this fraction of the
 // source's area.
-constexpr double kForcedArea = 1.0 / 256;
+constexpr double kForcedArea = 1.0 / 64;
 
 constexpr double kG0 = 0.21132486540518711775, kG1 = 0.78867513459481288225;  // 2-point Gauss on [0, 1]
 
