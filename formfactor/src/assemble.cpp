@@ -94,6 +94,7 @@ DenseMatrixOperator Assembler::run() {
       Eigen::AlignedBox3d box;
       for (const Vec3& v : g_.points) box.extend(v);
       scale_ = box.diagonal().norm();
+      if (o_.visibility_method != VisibilityMethod::Rays) merged_ = merge_coplanar_occluders(g_, occ, scale_);
     }
   }
   rays_ = o_.rays_per_pair;

@@ -61,7 +61,7 @@ struct TileBuffers {
   std::vector<int> rest_j;
   SampleBuffers ray;
   ExactScratchPtr exact = make_exact_scratch();
-  std::vector<int> cand;
+  std::vector<int> cand, merged_ids;
   std::vector<Occluder> occ;
   int blocker = -1;  // the occluder that blocked the last shaft tested (OccluderTree::may_block's cache)
 };
@@ -87,6 +87,7 @@ class Assembler {
   std::shared_ptr<const Visibility> caster_;
   std::vector<std::uint8_t> convex_;  // per patch: convex polygon (triangle or convex quad), for the exact path
   double scale_ = 0;                  // the scene's size (bounding-box diagonal)
+  MergedOccluders merged_;            // coplanar touching occluders merged (exact path)
   OccluderTree tree_;
   bool occlusion_ = false;
   double tol_ = 0;         // the tolerance used (Options::tolerance or the automatic one)

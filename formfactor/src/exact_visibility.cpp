@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <queue>
 
 #include "lambert/formfactor/kernel.hpp"
@@ -544,6 +545,73 @@ std::vector<Occluder> as_occluders(const std::vector<std::vector<Vec3>>& polys) 
   return out;
 }
 }  // namespace
+
+MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders,
+                                         double scale) {
+  MergedOccluders out;
+  out.of_patch.assign(size_t(g.size()), -1);
+  if (!(scale > 0)) return out;
+  // Unoriented plane of each occluder, quantised (normal to 1e-9, offset to 1e-9 of the scene): a rounding
+  // boundary can only split a group, never join different planes.
+  std::map<std::array<long long, 4>, std::vector<int>> groups;
+  for (int p : occluders) {
+    Vec3 n = g.normal[p];
+    if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;
+    const double d = n.dot(g.centroid[p]);
+    groups[{std::llround(n.x() * 1e9), std::llround(n.y() * 1e9), std::llround(n.z() * 1e9),
+            std::llround(d / (1e-9 * scale))}].push_back(p);
+  }
+  for (const auto& [key, members] : groups) {
+    if (members.size() < 2) continue;
+    Vec3 n = g.normal[members[0]];
+    if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;
+    const Vec3 o = g.centroid[members[0]];
+    const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized(), v = n.cross(u);
+    double R = 0;
+    for (int p : members)
+      for (const Vec3& q : g.polygon(p)) R = std::max({R, std::abs(u.dot(q - o)), std::abs(v.dot(q - o))});
+    if (!(R > 0)) continue;
+    R *= 1 + 1e-6;
+    const double S = kSnap / R, inv = R / kSnap;
+    ClipperLib::Paths in;
+    for (int p : members) {
+      ClipperLib::Path path;
+      for (const Vec3& q : g.polygon(p))
+        path.push_back({ClipperLib::cInt(std::llround(u.dot(q - o) * S)), ClipperLib::cInt(std::llround(v.dot(q - o) * S))});
+      if (!ClipperLib::Orientation(path)) ClipperLib::ReversePath(path);
+      in.push_back(path);
+    }
+    ClipperLib::Clipper c;
+    c.AddPaths(in, ClipperLib::ptSubject, true);
+    ClipperLib::Paths uni;
+    c.Execute(ClipperLib::ctUnion, uni, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+    bool hole = false;
+    for (const auto& path : uni) hole = hole || !ClipperLib::Orientation(path);
+    if (hole || uni.size() >= members.size()) continue;  // holes are not supported; nothing merged: keep patches
+    const int first = int(out.polys.size());
+    for (const auto& path : uni) {
+      std::vector<Vec3> poly;
+      for (const auto& ip : path) poly.push_back(o + (double(ip.X) * inv) * u + (double(ip.Y) * inv) * v);
+      bool convex = true;
+      for (size_t k = 0; k < poly.size() && convex; ++k)
+        convex = (poly[(k + 1) % poly.size()] - poly[k]).cross(poly[(k + 2) % poly.size()] - poly[(k + 1) % poly.size()]).dot(n) >= 0;
+      out.polys.push_back(std::move(poly));
+      out.convex.push_back(convex);
+    }
+    // Each member belongs to the region containing its centroid (strictly inside a convex patch's own corners).
+    for (size_t k = 0; k < members.size(); ++k) {
+      const Vec3& c0 = g.centroid[members[k]];
+      const ClipperLib::IntPoint ip{ClipperLib::cInt(std::llround(u.dot(c0 - o) * S)),
+                                    ClipperLib::cInt(std::llround(v.dot(c0 - o) * S))};
+      for (size_t r = 0; r < uni.size(); ++r)
+        if (ClipperLib::PointInPolygon(ip, uni[r]) != 0) {
+          out.of_patch[size_t(members[k])] = first + int(r);
+          break;
+        }
+    }
+  }
+  return out;
+}
 
 }  // namespace lambert::formfactor::detail
 

@@ -64,4 +64,16 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
                                   std::span<const Occluder> candidates, double tol, double scale,
                                   ExactScratch& scratch);
 
+// Occluders lying in one plane and touching or overlapping each other (a wall or a block face meshed into a grid,
+// both sides of a two-sided face) block exactly what their union blocks: they are merged into one polygon per
+// connected region of the union (Clipper, in the plane's integer frame: corners move by <= 1e-9 of the region's
+// size), where the plane's union has no hole. Fewer, larger occluders: fewer clips per point, and a region that
+// hides a pair alone can prove it hidden. Deterministic (groups in sorted plane order).
+struct MergedOccluders {
+  std::vector<std::vector<Vec3>> polys;
+  std::vector<std::uint8_t> convex;
+  std::vector<int> of_patch;  // per patch of the geometry: its merged polygon, or -1 (the patch is used as it is)
+};
+MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
+
 }  // namespace lambert::formfactor::detail

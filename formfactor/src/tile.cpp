@@ -307,8 +307,16 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                   b.cand.clear();
                   tree_.collect(sh, i, j, b.cand);
                   b.occ.clear();
-                  for (int p : b.cand)
-                    if (!coplanar(p, i) && !coplanar(p, j)) b.occ.push_back({g_.polygon(p), convex_[p] != 0});
+                  b.merged_ids.clear();
+                  for (int p : b.cand) {
+                    if (coplanar(p, i) || coplanar(p, j)) continue;
+                    const int m = merged_.of_patch.empty() ? -1 : merged_.of_patch[size_t(p)];
+                    if (m >= 0) b.merged_ids.push_back(m);
+                    else b.occ.push_back({g_.polygon(p), convex_[p] != 0});
+                  }
+                  std::sort(b.merged_ids.begin(), b.merged_ids.end());
+                  b.merged_ids.erase(std::unique(b.merged_ids.begin(), b.merged_ids.end()), b.merged_ids.end());
+                  for (int m : b.merged_ids) b.occ.push_back({merged_.polys[size_t(m)], merged_.convex[size_t(m)] != 0});
                   const ExactPairResult r =
                       exact_hidden_pair(g_.polygon(src), pr.P.nrm[src], area[src], convex_[src] != 0, g_.polygon(tgt),
                                         pr.P.nrm[tgt], convex_[tgt] != 0, b.occ, tol, scale_, *b.exact);
