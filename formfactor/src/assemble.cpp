@@ -94,7 +94,11 @@ DenseMatrixOperator Assembler::run() {
       Eigen::AlignedBox3d box;
       for (const Vec3& v : g_.points) box.extend(v);
       scale_ = box.diagonal().norm();
-      if (o_.visibility_method != VisibilityMethod::Rays) merged_ = merge_coplanar_occluders(g_, occ, scale_);
+      if (o_.visibility_method != VisibilityMethod::Rays) {
+        merged_ = merge_coplanar_occluders(g_, occ, scale_);
+        for (int m : merged_.of_patch) st_.occluders_merged += m >= 0;
+        st_.occluder_regions = int(merged_.polys.size());
+      }
     }
   }
   rays_ = o_.rays_per_pair;

@@ -21,6 +21,8 @@ void to_json(nlohmann::json& j, const Stats& s) {
   j["pairs_exact_integrated"] = s.pairs_exact_integrated;
   j["pairs_exact_over_tolerance"] = s.pairs_exact_over_tolerance;
   j["exact_points"] = s.exact_points;
+  j["occluders_merged"] = s.occluders_merged;
+  j["occluder_regions"] = s.occluder_regions;
   j["pairs_by_method"] = s.pairs_by_method;
   j["pairs_reused"] = s.pairs_reused;
   j["pairs_over_tolerance"] = s.pairs_over_tolerance;

@@ -125,6 +125,9 @@ struct Stats {
   // occluder, integrated by the adaptive outer rule (its point evaluations, pairs stopped above tolerance).
   long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;
   long long exact_points = 0, pairs_exact_over_tolerance = 0;
+  // Exact path: occluder patches merged with coplanar touching neighbours (a meshed wall or block face) into
+  // this many polygons, one per connected region of their union.
+  int occluders_merged = 0, occluder_regions = 0;
   std::map<std::string, long long> pairs_by_method;  // unoccluded-integral method per computed pair
   long long rays_cast = 0;
   bool scene_can_occlude = false;  // false: no patch can block another (convex enclosure), no rays at all
