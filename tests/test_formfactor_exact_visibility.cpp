@@ -322,3 +322,34 @@ TEST(ExactVisibilityAssembly, MeshedBlockHidesLikeTheSameBlockInOnePiece) {
 
 }  // namespace
 }  // namespace lambert
+
+namespace lambert {
+namespace {
+
+namespace ff = formfactor;
+
+// A non-convex (L-shaped) target: the cone is its bounding rectangle and the union of the shadows is intersected
+// with the target in 2D. L = [-1,1] x [-1,0] plus [-1,0] x [0,1] at z = 1 (facing down); one occluder strip
+// x in [a, b] at height h, all y: the visible part is the L minus the shadow band, a sum of rectangles.
+TEST(ExactVisibility, NonConvexTargetMatchesClosedForm) {
+  const double c = 1.0, h = 0.5, a = -0.2, b = 0.15;
+  const Vec3 x(0.1, 0.05, 0), n(0, 0, 1);
+  // Counter-clockwise seen from below (from -z): the target faces -z.
+  std::vector<Vec3> L = {{-1, -1, c}, {-1, 1, c}, {0, 1, c}, {0, 0, c}, {1, 0, c}, {1, -1, c}};
+  const std::vector<std::vector<Vec3>> occ = {rect(2, h, a, b, -10, 10, true)};
+  const double s0 = x.x() + (a - x.x()) * c / h, s1 = x.x() + (b - x.x()) * c / h;  // shadow band in x
+  auto rect_part = [&](double x0, double x1, double y0, double y1) {
+    // F of the rectangle minus its part inside the band.
+    const double lo = std::max(x0, s0), hi = std::min(x1, s1);
+    double f = point_to_rect(x.x(), x.y(), x0, x1, y0, y1, c);
+    if (hi > lo) f -= point_to_rect(x.x(), x.y(), lo, hi, y0, y1, c);
+    return f;
+  };
+  const double expected = rect_part(-1, 1, -1, 0) + rect_part(-1, 0, 0, 1);
+  const double got = ff::visible_point_to_polygon(x, n, L, occ);
+  EXPECT_NEAR(got, expected, 1e-9) << "unoccluded " << ff::point_to_polygon(x, n, L);
+  EXPECT_LT(got, 0.8 * ff::point_to_polygon(x, n, L));
+}
+
+}  // namespace
+}  // namespace lambert
