@@ -393,12 +393,15 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     double q = 0;
     sample_kind = -1;
     if (e.quad) {
-      for (double a : {kG0, kG1})
-        for (double b : {kG0, kG1}) {
+      constexpr double x3[3] = {0.11270166537925831148, 0.5, 0.88729833462074168852};
+      constexpr double w3[3] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
+      for (int ia = 0; ia < 3; ++ia)
+        for (int ib = 0; ib < 3; ++ib) {
+          const double a = x3[ia], b = x3[ib];
           const Vec3 ds = (1 - b) * (e.v[1] - e.v[0]) + b * (e.v[2] - e.v[3]);
           const Vec3 dt = (1 - a) * (e.v[3] - e.v[0]) + a * (e.v[2] - e.v[1]);
           const double J = std::abs(ds.cross(dt).dot(ns));
-          q += 0.25 * J * f(bilinear(e.v, a, b));
+          q += w3[ia] * w3[ib] * J * f(bilinear(e.v, a, b));
         }
     } else {
       const double A = 0.5 * std::abs((e.v[1] - e.v[0]).cross(e.v[2] - e.v[0]).dot(ns));
