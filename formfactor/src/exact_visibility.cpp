@@ -405,9 +405,13 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
         }
     } else {
       const double A = 0.5 * std::abs((e.v[1] - e.v[0]).cross(e.v[2] - e.v[0]).dot(ns));
-      const Vec3 c = (e.v[0] + e.v[1] + e.v[2]) / 3.0;
-      // Degree-2 rule: barycentric (2/3, 1/6, 1/6) and permutations = midpoints of centroid and corners.
-      for (int k = 0; k < 3; ++k) q += (A / 3) * f(0.5 * (c + e.v[k]));
+      // Dunavant's 6-point rule, degree 4: barycentric (a, a, 1 - 2a) and permutations, two orbits.
+      constexpr double a1 = 0.445948490915965, w1 = 0.223381589678011, a2 = 0.091576213509771, w2 = 0.109951743655322;
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 &p0 = e.v[k], &p1 = e.v[(k + 1) % 3], &p2 = e.v[(k + 2) % 3];
+        q += A * w1 * f((1 - 2 * a1) * p0 + a1 * (p1 + p2));
+        q += A * w2 * f((1 - 2 * a2) * p0 + a2 * (p1 + p2));
+      }
       e.Q = q;
       e.has_Q = true;
       e.kind = sample_kind;
