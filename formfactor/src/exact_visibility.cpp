@@ -264,7 +264,6 @@ struct Leaf {
 // source's area.
 constexpr double kForcedArea = 1.0 / 64;
 
-constexpr double kG0 = 0.21132486540518711775, kG1 = 0.78867513459481288225;  // 2-point Gauss on [0, 1]
 
 Vec3 bilinear(const std::array<Vec3, 4>& v, double s, double t) {
   return (1 - s) * (1 - t) * v[0] + s * (1 - t) * v[1] + s * t * v[2] + (1 - s) * t * v[3];
@@ -476,7 +475,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     }
     const double A = e.quad ? std::abs((e.v[2] - e.v[0]).cross(e.v[3] - e.v[1]).dot(ns)) * 0.5
                             : 0.5 * std::abs((e.v[1] - e.v[0]).cross(e.v[2] - e.v[0]).dot(ns));
-    // Forced refinement down to 1/256 of the source (a shadow narrower than that may still be missed when
+    // Forced refinement down to 1/64 of the source (a shadow narrower than that may still be missed when
     // every sample of its element is outside it; the hull test keeps such elements "mixed" only while an
     // occluder can still reach them).
     int kind = e.kind;
