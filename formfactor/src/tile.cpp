@@ -332,6 +332,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                   }
                   c.exact_points += r.points;
                   c.exact_over += r.over_tolerance;
+                  c.over_tolerance += r.over_tolerance;  // the finding "pairs above tolerance" counts them too
                   b.err[slot(i, j)] += r.error * to_ij;
                   c.exact_seconds += seconds_since(t_exact);
                   continue;

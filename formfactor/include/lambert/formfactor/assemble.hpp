@@ -166,7 +166,8 @@ struct Stats {
   // Entries F_ij outside [0, 1] (never clamped silently):
   long long entries_roundoff = 0;      // outside by at most the entry's error bound + 1e-14: set to 0 or 1, counted
   long long entries_outside_unit = 0;  // outside by more (left as computed): untrustworthy, must be 0
-  long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance
+  long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance;
+                                       // includes pairs_exact_over_tolerance (the exact path's point limit)
   long long pairs_no_visible_sample = 0;  // ray-tested pairs where no sample pair faced each other: F set to 0
   long long pairs_reused = 0;          // copied from Options::reuse (not computed, no rays)
   // "setup", "bvh", "form_factors" (integration + visibility), "visibility" (its share of form_factors,
