@@ -8,11 +8,6 @@
 
 namespace lambert::formfactor::detail {
 
-// --visibility auto: pairs carrying at least this share of a row (max(F_ij, F_ji)) take the exact path, the
-// others rays (docs/benchmarks.md, "Exact visibility": the exact path's cost per pair is ~100x a 16-ray
-// estimate, so it goes where the row-sum error is made).
-constexpr double kExactShare = 1e-3;
-
 const std::array<std::uint8_t, 256>& code_method() {
   static const std::array<std::uint8_t, 256> lut = [] {
     std::array<std::uint8_t, 256> t{};
@@ -301,7 +296,9 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                 const int src = swap ? j : i, tgt = swap ? i : j;
                 const double share = std::max(F(i, j), F(i, j) * area[i] / area[j]);
                 const bool exact = o_.visibility_method == VisibilityMethod::Exact ||
-                                   (o_.visibility_method == VisibilityMethod::Auto && share >= kExactShare);
+                                   (o_.visibility_method == VisibilityMethod::Auto && share > tol);
+                // auto: a pair whose whole F (either direction) is within the per-entry tolerance takes rays, whose
+                // error is then below the tolerance whatever the visible fraction.
                 if (exact) {
                   const auto t_exact = Clock::now();
                   b.cand.clear();
