@@ -97,6 +97,7 @@ formfactor::Options ff_options(const CommonOptions& o, double rho_max, Progress*
   f.max_reflectance = rho_max;
   f.visibility = !o.no_visibility;
   formfactor::parse_rule(o.ff_rule, f.rule, f.order);
+  f.visibility_method = formfactor::parse_visibility_method(o.visibility);
   f.threads = o.threads;
   if (progress) f.progress = [progress](double x) { progress->update(x); };
   return f;
@@ -439,6 +440,16 @@ std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* 
       "  form factors {} rule, tolerance {:.1e} per entry; row sum min/mean/max {:.6f} / {:.6f} / {:.6f}\n",
       s.pairs_total, s.pairs_orientation_culled, s.pairs_shaft_culled, s.pairs_ray_tested, s.rays_cast, s.rule,
       s.tolerance, s.row_sum_min, s.row_sum_mean, s.row_sum_max);
+  const long long exact = s.pairs_exact_clear + s.pairs_exact_hidden + s.pairs_exact_integrated;
+  if (exact > 0) {
+    auto sec = [&](const char* k) { return s.seconds.count(k) ? s.seconds.at(k) : 0.0; };
+    out += fmt::format("  visibility   {}: {} pairs exact ({} proven clear, {} hidden, {} integrated at {} points{}) in "
+                       "{:.2f} s; {} by rays in {:.2f} s\n",
+                       s.visibility_method, exact, s.pairs_exact_clear, s.pairs_exact_hidden, s.pairs_exact_integrated,
+                       s.exact_points,
+                       s.pairs_exact_over_tolerance ? fmt::format(", {} above tolerance", s.pairs_exact_over_tolerance) : "",
+                       sec("visibility_exact"), s.pairs_ray_tested, sec("visibility_rays"));
+  }
   if (s.reciprocity_check_pairs > 0)
     out += fmt::format("  reciprocity  {} pairs integrated independently in reverse: largest difference {:.2e} relative, "
                        "{:.2g}x its error bound ({})\n",

@@ -22,6 +22,7 @@ struct CommonOptions {
   std::string orient = "visibility";  // --orient: prepare.orient = mesh::parse_orientation(orient)
   bool no_visibility = false;  // --no-visibility: ff.visibility = false
   std::string ff_rule = "adaptive";  // formfactor::parse_rule: adaptive | point | gauss1..gauss8
+  std::string visibility = "rays";   // --visibility: formfactor::parse_visibility_method: auto | exact | rays
   std::string method = "auto";       // solver::parse_method
   double crease_deg = mesh::VertexSplit::kDefaultCreaseDeg;
   int adaptive_budget = 0;           // 0 = no adaptive refinement; else adaptive.max_patches

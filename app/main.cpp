@@ -105,7 +105,14 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"adaptive", "point", "gauss1", "gauss2", "gauss3", "gauss4", "gauss5", "gauss6",
                                "gauss7", "gauss8"}))
         ->capture_default_str();
-    sub->add_option("--rays", common.ff.rays_per_pair, "Visibility rays per pair that may be partially occluded")
+    sub->add_option("--visibility", common.visibility,
+                    "Partially occluded pairs: exact (occluders clipped out of the contour integral, adaptive outer "
+                    "rule to the form-factor tolerance), rays (ray estimate, --rays per pair), auto (exact, rays "
+                    "only for pairs whose whole form factor is below the tolerance)")
+        ->check(CLI::IsMember({"auto", "exact", "rays"}))
+        ->capture_default_str();
+    sub->add_option("--rays", common.ff.rays_per_pair,
+                    "Visibility rays per pair that may be partially occluded (the rays path of --visibility)")
         ->check(Positive)
         ->capture_default_str();
     sub->add_option("--operator", common.op,
@@ -218,6 +225,15 @@ int main(int argc, char** argv) {
   furnace->add_option("--rho", vo.furnace.rho, "Reflectance in [0,1)")->check(Between(0.0, 0.999999999))->capture_default_str();
   furnace->add_option("--method", vo.method, "auto, jacobi, gauss-seidel, bicgstab, gmres")->capture_default_str();
   furnace->add_option("--threads", common.threads, "Worker threads (default: all cores)")->check(Positive);
+  std::string furnace_visibility = "rays";
+  furnace->add_option("--visibility", furnace_visibility,
+                      "Partially occluded pairs: rays (--rays per pair, default 256 here), exact (occluders clipped "
+                      "out of the contour integral), auto")
+      ->check(CLI::IsMember({"auto", "exact", "rays"}))
+      ->capture_default_str();
+  furnace->add_option("--rays", vo.furnace.ff.rays_per_pair, "Visibility rays per pair (the rays path)")
+      ->check(Positive)
+      ->capture_default_str();
 
   // study
   app::StudyOptions so;
@@ -250,7 +266,10 @@ int main(int argc, char** argv) {
     if (info->parsed()) return app::run_info(common);
     if (ff->parsed()) return app::run_formfactors(common);
     if (sphere->parsed()) return app::run_verify_sphere(vo, common);
-    if (furnace->parsed()) return app::run_verify_furnace(vo, common);
+    if (furnace->parsed()) {
+      vo.furnace.ff.visibility_method = formfactor::parse_visibility_method(furnace_visibility);
+      return app::run_verify_furnace(vo, common);
+    }
     if (study->parsed()) return app::run_study(so);
   } catch (const InternalError& e) {
     std::fprintf(stderr, "lambert: internal error: %s\n", e.what());

@@ -67,21 +67,22 @@ struct Row {
   long long rays_cast = 0;
   double row_sum_dev = 0;
   double max_err = 0, mean_err = 0, rms_err = 0;
+  std::string visibility = "rays";  // the visibility path: rays (with `rays` per pair) or exact
 };
 
 constexpr const char* kHeader =
     "case,variant,level,h,patches,rho,rule,ff_tolerance,rays,method,solve_tolerance,threads,t_formfactors,"
     "t_visibility,t_solve,t_total,iterations,matvecs,residual,converged,rays_cast,row_sum_dev,max_rel_error,"
-    "mean_rel_error,rms_rel_error";
+    "mean_rel_error,rms_rel_error,visibility";
 
 std::string csv_line(const Row& r, int threads) {
   return fmt::format("{},{},{},{:.6g},{},{},{},{},{},{},{},{},{:.6g},{:.6g},{:.6g},{:.6g},{},{},{:.3e},{},{},{:.3e},"
-                     "{:.6e},{:.6e},{:.6e}",
+                     "{:.6e},{:.6e},{:.6e},{}",
                      r.case_name, r.variant, r.level, r.h, r.patches, r.rho, r.knob.label(),
                      r.knob.rule == formfactor::Rule::Adaptive || r.knob.hierarchical ? fmt::format("{:g}", r.knob.tolerance) : "",
                      r.rays, r.method, r.solve_tolerance > 0 ? fmt::format("{:g}", r.solve_tolerance) : "", threads,
                      r.t_ff, r.t_vis, r.t_solve, r.t_ff + r.t_solve, r.iterations, r.matvecs, r.residual,
-                     r.converged ? 1 : 0, r.rays_cast, r.row_sum_dev, r.max_err, r.mean_err, r.rms_err);
+                     r.converged ? 1 : 0, r.rays_cast, r.row_sum_dev, r.max_err, r.mean_err, r.rms_err, r.visibility);
 }
 
 class Study {
@@ -96,7 +97,8 @@ class Study {
     formfactor::Stats stats;
     double seconds = 0;  // form factors and the solver's set-up
   };
-  Assembly assemble(const mesh::PatchGeometry& g, const Knob& k, int rays) const;
+  Assembly assemble(const mesh::PatchGeometry& g, const Knob& k, int rays,
+                    formfactor::VisibilityMethod vis = formfactor::VisibilityMethod::Rays) const;
   void emit(Row r);
   // Solve on an assembled geometry and compare with `exact` (channel 0).
   void solve_row(Row r, const mesh::PatchGeometry& g, const Assembly& a, const ColorField& rho, const ColorField& Le,
@@ -105,6 +107,7 @@ class Study {
   void sphere_form_factors();
   void solver_methods();
   void furnace();
+  void visibility();
   void scale();
   void hierarchy();
   void catalogue();
@@ -114,8 +117,10 @@ class Study {
   Clock::time_point start_ = Clock::now();
 };
 
-Study::Assembly Study::assemble(const mesh::PatchGeometry& g, const Knob& k, int rays) const {
+Study::Assembly Study::assemble(const mesh::PatchGeometry& g, const Knob& k, int rays,
+                                formfactor::VisibilityMethod vis) const {
   formfactor::Options ff;
+  ff.visibility_method = vis;
   ff.rule = k.rule;
   ff.order = k.order;
   if (k.rule == formfactor::Rule::Adaptive) ff.tolerance = k.tolerance;
@@ -339,6 +344,36 @@ void Study::hierarchy() {
   }
 }
 
+// Visibility axis: exact visibility (at three tolerances) against rays (1..256 per pair) on the white furnace
+// at rho = 0.99 and on the room with a floating block at rho = 0.9 (uniform emission: exact answer E0/(1-rho)).
+void Study::visibility() {
+  const std::vector<int> rays = o_.quick ? std::vector<int>{4, 16} : std::vector<int>{1, 4, 16, 64, 256};
+  const std::vector<Knob> exact = o_.quick ? std::vector<Knob>{kAdaptive6}
+                                           : std::vector<Knob>{kAdaptive6, Knob{formfactor::Rule::Adaptive, 1, 1e-7},
+                                                               kAdaptive8};
+  struct Scene {
+    const char* name;
+    int n, m;
+    double rho;
+  };
+  const std::vector<Scene> scenes = o_.quick ? std::vector<Scene>{{"furnace", 3, 1, 0.99}, {"room_block", 4, 2, 0.9}}
+                                             : std::vector<Scene>{{"furnace", 6, 3, 0.99}, {"room_block", 8, 4, 0.9}};
+  for (const Scene& sc : scenes) {
+    const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(mesh::shapes::room_with_block(sc.n, sc.m));
+    const ColorField Rf = ColorField::Constant(g.size(), 3, sc.rho), Le = ColorField::Constant(g.size(), 3, 1.0);
+    const Eigen::VectorXd exact_L = Eigen::VectorXd::Constant(g.size(), 1 / (1 - sc.rho));
+    auto one = [&](const Knob& k, int R, formfactor::VisibilityMethod vm) {
+      const Assembly a = assemble(g, k, R, vm);
+      Row r{.case_name = "visibility", .variant = fmt::format("{} n={}", sc.name, sc.n), .level = double(sc.n),
+            .h = mean_size(g), .rho = sc.rho, .knob = k, .rays = vm == formfactor::VisibilityMethod::Exact ? 0 : R};
+      r.visibility = formfactor::to_string(vm);
+      solve_row(r, g, a, Rf, Le, exact_L, solver::Method::GMRES, 1e-12);
+    };
+    for (int R : rays) one(kAdaptive8, R, formfactor::VisibilityMethod::Rays);
+    for (const Knob& k : exact) one(k, 16, formfactor::VisibilityMethod::Exact);
+  }
+}
+
 // One closed scene spanning 1 mm to 1 km: a 1000 m furnace room with a 1 mm speck floating inside.
 void Study::scale() {
   const std::vector<Knob> knobs =
@@ -444,6 +479,7 @@ void Study::run() {
   sphere_form_factors();
   solver_methods();
   furnace();
+  visibility();
   scale();
   hierarchy();
   io::write_file_atomically(path, [&](std::ostream& out) {

@@ -9,6 +9,7 @@ PACKAGES=(
   libcgal-dev          # geometry: convex hulls, mesh processing
   libboost-dev         # Boost.Polygon (header-only): daylight sky clipping (CGAL pulls it in anyway)
   libembree-dev        # ray tracing for visibility
+  libpolyclipping-dev  # Clipper: 2D Boolean operations (union of projected occluders, exact visibility)
   libvtk9-dev          # .vtu output for ParaView
   libtbb-dev           # threads
   libcli11-dev         # command line

@@ -21,12 +21,12 @@ from datetime import date
 
 COLUMNS = ("case,variant,level,h,patches,rho,rule,ff_tolerance,rays,method,solve_tolerance,threads,t_formfactors,"
            "t_visibility,t_solve,t_total,iterations,matvecs,residual,converged,rays_cast,row_sum_dev,max_rel_error,"
-           "mean_rel_error,rms_rel_error").split(",")
+           "mean_rel_error,rms_rel_error,visibility").split(",")
 NUMERIC = ["level", "h", "patches", "rho", "rays", "threads", "t_formfactors", "t_visibility", "t_solve", "t_total",
            "iterations", "matvecs", "residual", "converged", "rays_cast", "row_sum_dev", "max_rel_error",
            "mean_rel_error", "rms_rel_error"]
 CASES = ["opposed_squares", "common_edge", "near_touching", "sliver", "sphere_linear", "sphere_uniform", "solver",
-         "furnace", "scale"]
+         "furnace", "visibility", "scale"]
 
 
 class Bad(Exception):
@@ -151,6 +151,8 @@ def panels():
         ("catalogue: touching squares (C-14)", dict(case="common_edge"), "rule"),
         ("catalogue: gap 1e-4", dict(case="near_touching", variant="gap=0.0001"), "rule"),
         ("catalogue: sliver triangles", dict(case="sliver"), "rule"),
+        ("visibility: furnace rho 0.99, exact vs rays", dict(case="visibility", rho=0.99), "visibility"),
+        ("visibility: room with block rho 0.9, exact vs rays", dict(case="visibility", rho=0.9), "visibility"),
     ]
 
 
@@ -184,7 +186,9 @@ def plot(rows, out):
 
     # 1. error against total time, one curve per knob, Pareto front.
     ps = panels()
-    fig, axes = plt.subplots(2, 3, figsize=(16, 9.5))
+    fig, axes = plt.subplots(3, 3, figsize=(16, 14))
+    for ax in list(axes.flat)[len(ps):]:
+        ax.set_visible(False)
     for ax, (title, flt, key) in zip(axes.flat, ps):
         sel = select(rows, **flt)
         if key == "rays":

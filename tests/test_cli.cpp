@@ -278,3 +278,61 @@ TEST_F(Cli, StudyFailsEarlyOnAnUnwritableOutputDirectory) {
   EXPECT_NE(r.output.find("output directory"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("study    1"), std::string::npos) << "no run may start: " << r.output;
 }
+
+// --visibility exact on two parallel unit squares with a square occluder between them covering x <= 1/2 (facing
+// down, z = 1/2): F_01 matches the area formulation with the hidden part removed analytically (from p the visible
+// part of the upper square is x in [1 - p_x, 1]; 24 x 24 Gauss points on the closed-form point-to-rectangle
+// factor), --stats reports the exact path, and an unknown method is refused (exit 1).
+TEST_F(Cli, FormFactorsWithExactVisibilityMatchAreaFormulation) {
+  write("two.mtl", kTwoMtl);
+  const std::string obj = write("occ.obj", kTwoSquares + "v -1 -1 0.5\nv 0.5 -1 0.5\nv 0.5 2 0.5\nv -1 2 0.5\nf 9 12 11 10\n");
+  const std::string out = path("F.csv"), stats = path("s.json");
+  const CliRun r = run("formfactors " + obj + " -o " + out + " --stats " + stats + " --visibility exact --quiet");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto corner = [](double a, double b) {  // element at distance 1 below the corner of the rectangle [0,a] x [0,b]
+    const double s = (a < 0 ? -1 : 1) * (b < 0 ? -1 : 1), A = std::abs(a), B = std::abs(b);
+    const double sa = std::sqrt(1 + A * A), sb = std::sqrt(1 + B * B);
+    return s * (A / sa * std::atan(B / sa) + B / sb * std::atan(A / sb)) / (2 * M_PI);
+  };
+  auto rect = [&](double px, double py, double x0, double x1) {
+    return corner(x1 - px, 1 - py) - corner(x0 - px, 1 - py) - corner(x1 - px, -py) + corner(x0 - px, -py);
+  };
+  // 24-point Gauss-Legendre on [0, 1] by Newton on P_24.
+  std::vector<double> x(24), w(24);
+  for (int i = 0; i < 24; ++i) {
+    double z = std::cos(M_PI * (i + 0.75) / 24.5), dp = 1;
+    for (int it = 0; it < 100; ++it) {
+      double p0 = 1, p1 = z;
+      for (int k = 2; k <= 24; ++k) {
+        const double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
+        p0 = p1;
+        p1 = p2;
+      }
+      dp = 24 * (z * p1 - p0) / (z * z - 1);
+      const double dz = p1 / dp;
+      z -= dz;
+      if (std::abs(dz) < 1e-16) break;
+    }
+    x[i] = 0.5 * (1 + z);
+    w[i] = 1.0 / ((1 - z * z) * dp * dp);
+  }
+  double ref = 0;
+  for (int a = 0; a < 24; ++a)
+    for (int b = 0; b < 24; ++b) ref += w[a] * w[b] * rect(x[a], x[b], 1 - x[a], 1);
+  std::ifstream in(out);
+  std::string line;
+  double f01 = -1;
+  while (std::getline(in, line)) {
+    int i, j;
+    double f;
+    if (std::sscanf(line.c_str(), "%d,%d,%lf", &i, &j, &f) == 3 && i == 0 && j == 1) f01 = f;
+  }
+  EXPECT_NEAR(f01, ref, 3e-8) << "tolerance: 1e-8 on the unoccluded and on the hidden part, 12 digits written";
+  std::ifstream sj(stats);
+  const auto j = nlohmann::json::parse(sj)["form_factors"];
+  EXPECT_EQ(j["visibility_method"], "exact");
+  EXPECT_GE(j["pairs_exact_integrated"].get<long long>() + j["pairs_exact_hidden"].get<long long>(), 1);
+  EXPECT_EQ(j["pairs_ray_tested"].get<long long>(), 0);
+  const CliRun bad = run("formfactors " + obj + " -o " + path("G.csv") + " --visibility bogus");
+  EXPECT_EQ(bad.status, 1) << bad.output;
+}

@@ -28,6 +28,7 @@ void Assembler::check_options() {
   st_.rule = to_string(o_.rule, o_.order);
   st_.visibility = o_.visibility;
   st_.rays_per_pair = o_.rays_per_pair;
+  st_.visibility_method = to_string(o_.visibility_method);
   if (!o_.fault_method.empty()) {
     for (int m = 0; m < kMethodCount; ++m)
       if (o_.fault_method == kMethodNames[m]) fault_method_ = m;
@@ -88,6 +89,16 @@ DenseMatrixOperator Assembler::run() {
       caster_ = o_.caster ? o_.caster : std::shared_ptr<const Visibility>(make_embree_visibility(g_, occ));
       tree_ = OccluderTree(g_, occ);
       occlusion_ = true;
+      convex_.assign(size_t(n), 0);
+      for (int p = 0; p < n; ++p) convex_[p] = prep_->P.kind[p] <= 2;  // triangle, parallelogram, convex quad
+      Eigen::AlignedBox3d box;
+      for (const Vec3& v : g_.points) box.extend(v);
+      scale_ = box.diagonal().norm();
+      if (o_.visibility_method != VisibilityMethod::Rays) {
+        merged_ = merge_coplanar_occluders(g_, occ, scale_);
+        for (int m : merged_.of_patch) st_.occluders_merged += m >= 0;
+        st_.occluder_regions = int(merged_.polys.size());
+      }
     }
   }
   rays_ = o_.rays_per_pair;
@@ -156,6 +167,21 @@ double default_tolerance(double max_reflectance) {
   // tolerance x rho / (1 - rho), the row-sum error's amplification, held at its value for rho = 0.9 (9e-8).
   const double rho = max_reflectance < 0 ? 0.9 : std::min(max_reflectance, 0.9999);
   return rho <= 0.9 ? 1e-8 : 1e-8 * 9 * (1 - rho) / rho;
+}
+
+std::string to_string(VisibilityMethod m) {
+  switch (m) {
+    case VisibilityMethod::Exact: return "exact";
+    case VisibilityMethod::Rays: return "rays";
+    default: return "auto";
+  }
+}
+
+VisibilityMethod parse_visibility_method(std::string_view text) {
+  if (text == "auto") return VisibilityMethod::Auto;
+  if (text == "exact") return VisibilityMethod::Exact;
+  if (text == "rays") return VisibilityMethod::Rays;
+  throw InputError("unknown visibility method '" + std::string(text) + "' (choose exact, rays, auto)");
 }
 
 std::string to_string(Rule rule, int order) {

@@ -12,6 +12,7 @@
 #include "lambert/formfactor/assemble.hpp"
 #include "prepared.hpp"
 #include "sampling.hpp"
+#include "exact_visibility.hpp"
 #include "shaft.hpp"
 
 namespace lambert::formfactor::detail {
@@ -40,7 +41,9 @@ struct RecipCandidate {
 struct Counters {
   long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0, reused = 0, fixed = 0;
   long long no_visible_sample = 0;
+  long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   double tile_seconds = 0, visibility_seconds = 0;  // thread time in tiles, and in their visibility step
+  double exact_seconds = 0, rays_seconds = 0;       // thread time of the two visibility paths
   std::array<long long, kMethodCount> by_method{};
   long long outside = 0, roundoff = 0;
   std::vector<double> row_sum, row_err, row_vis_var;  // per patch: row sum, its error bound, visibility variance
@@ -57,6 +60,9 @@ struct TileBuffers {
   std::vector<std::uint8_t> meth;   // kBlock x kBlock: pair code of F_ij (see kCodeScalar)
   std::vector<int> rest_j;
   SampleBuffers ray;
+  ExactScratchPtr exact = make_exact_scratch();
+  std::vector<int> cand, merged_ids;
+  std::vector<Occluder> occ;
   int blocker = -1;  // the occluder that blocked the last shaft tested (OccluderTree::may_block's cache)
 };
 
@@ -79,6 +85,9 @@ class Assembler {
   std::unique_ptr<Prepared> prep_;
   DenseMatrixOperator::Matrix* F_ = nullptr;
   std::shared_ptr<const Visibility> caster_;
+  std::vector<std::uint8_t> convex_;  // per patch: convex polygon (triangle or convex quad), for the exact path
+  double scale_ = 0;                  // the scene's size (bounding-box diagonal)
+  MergedOccluders merged_;            // coplanar touching occluders merged (exact path)
   OccluderTree tree_;
   bool occlusion_ = false;
   double tol_ = 0;         // the tolerance used (Options::tolerance or the automatic one)

@@ -15,6 +15,14 @@ void to_json(nlohmann::json& j, const Stats& s) {
   j["pairs_orientation_culled"] = s.pairs_orientation_culled;
   j["pairs_shaft_culled"] = s.pairs_shaft_culled;
   j["pairs_ray_tested"] = s.pairs_ray_tested;
+  j["visibility_method"] = s.visibility_method;
+  j["pairs_exact_clear"] = s.pairs_exact_clear;
+  j["pairs_exact_hidden"] = s.pairs_exact_hidden;
+  j["pairs_exact_integrated"] = s.pairs_exact_integrated;
+  j["pairs_exact_over_tolerance"] = s.pairs_exact_over_tolerance;
+  j["exact_points"] = s.exact_points;
+  j["occluders_merged"] = s.occluders_merged;
+  j["occluder_regions"] = s.occluder_regions;
   j["pairs_by_method"] = s.pairs_by_method;
   j["pairs_reused"] = s.pairs_reused;
   j["pairs_over_tolerance"] = s.pairs_over_tolerance;

@@ -141,4 +141,24 @@ bool OccluderTree::may_block(const Shaft& s, int ia, int ib, int* hint) const {
   return false;
 }
 
+void OccluderTree::collect(const Shaft& s, int ia, int ib, std::vector<int>& out) const {
+  if (nodes_.empty()) return;
+  int stack[64];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& nd = nodes_[stack[--top]];
+    if (box_outside(s, nd.box)) continue;
+    if (nd.left >= 0) {
+      stack[top++] = nd.right;
+      stack[top++] = nd.left;
+      continue;
+    }
+    for (int k = nd.begin; k < nd.end; ++k) {
+      const int p = items_[k];
+      if (p != ia && p != ib && item_may_block(s, p)) out.push_back(p);
+    }
+  }
+}
+
 }  // namespace lambert::formfactor::detail

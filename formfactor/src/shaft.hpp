@@ -43,6 +43,9 @@ class OccluderTree {
   // given, is tested first and set to the occluder found: neighbouring pairs are mostly blocked by the same
   // wall (an occluder cache; the answer is the same with or without it).
   bool may_block(const Shaft& s, int ia, int ib, int* hint = nullptr) const;
+  // Every occluder other than ia and ib that may meet the shaft (same test as may_block), appended to out in
+  // tree order (deterministic).
+  void collect(const Shaft& s, int ia, int ib, std::vector<int>& out) const;
 
  private:
   struct Node {

@@ -15,11 +15,18 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
   st_.row_visibility_sigma.assign(n, 0.0);
   std::array<long long, kMethodCount> by{};
   long long fixed = 0;
-  double tile_seconds = 0, visibility_seconds = 0;
+  double tile_seconds = 0, visibility_seconds = 0, exact_seconds = 0, rays_seconds = 0;
   for (const Counters* cp : counters) {
     const Counters& c = *cp;
     tile_seconds += c.tile_seconds;
     visibility_seconds += c.visibility_seconds;
+    exact_seconds += c.exact_seconds;
+    rays_seconds += c.rays_seconds;
+    st_.pairs_exact_clear += c.exact_clear;
+    st_.pairs_exact_hidden += c.exact_hidden;
+    st_.pairs_exact_integrated += c.exact_integrated;
+    st_.exact_points += c.exact_points;
+    st_.pairs_exact_over_tolerance += c.exact_over;
     for (int i = 0; i < n; ++i) {
       rows[i] += c.row_sum[i];
       st_.row_error_bound[i] += c.row_err[i];
@@ -57,7 +64,10 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
     st_.row_sum_mean = sum / n;
   }
   // Wall-time share of visibility inside "form_factors" (integration and visibility interleave per tile).
-  st_.seconds["visibility"] = tile_seconds > 0 ? st_.seconds["form_factors"] * visibility_seconds / tile_seconds : 0.0;
+  const double per_thread_second = tile_seconds > 0 ? st_.seconds["form_factors"] / tile_seconds : 0.0;
+  st_.seconds["visibility"] = per_thread_second * visibility_seconds;
+  st_.seconds["visibility_exact"] = per_thread_second * exact_seconds;
+  st_.seconds["visibility_rays"] = per_thread_second * rays_seconds;
 }
 
 void Assembler::check_reciprocity(const std::vector<Counters*>& counters) {

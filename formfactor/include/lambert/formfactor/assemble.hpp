@@ -19,8 +19,18 @@
 // entries; the solve amplifies a row-sum error delta to a radiance error of about rho delta / (1 - rho)
 // (docs/physics.md). Hence the automatic tolerance (Options::tolerance = 0) follows the scene's largest
 // reflectance: default_tolerance() below. Measured errors and costs: docs/benchmarks.md, docs/accuracy.md.
-// Visibility is NOT covered by `tolerance`: the visible fraction is a ray estimate (rays_per_pair), and only
-// pairs whose segments may actually be blocked are ray-tested; Stats::row_visibility_sigma states its error.
+// Visibility (only for pairs whose segments may actually be blocked, after shaft culling) is computed per pair
+// by one of two paths (Options::visibility_method):
+//   exact  occluders between the pair (from the occluder tree) are culled against the convex hull of the two
+//          patches; a pair none reaches is unoccluded, a pair one convex occluder separates completely is
+//          hidden; otherwise, at each point x of an adaptive outer rule on the source, the occluders are
+//          clipped to the cone from x through the target, projected on the target's plane, united (Clipper,
+//          integer coordinates) and the union's contour integral is the hidden part of F(x -> target). The
+//          outer rule compares each element with its four children and refines where they differ, until the
+//          hidden part's estimated error is <= tolerance: occluded pairs meet the unoccluded entries' tolerance.
+//   rays   the visible fraction is a ray estimate (rays_per_pair), Stats::row_visibility_sigma its error.
+// auto takes the exact path, except for pairs whose unoccluded F (either direction) is at most the tolerance,
+// where any visible fraction is within the tolerance: those take the rays.
 // What each assembly admits (per-row error bounds, an independent reciprocity check, entries outside [0, 1])
 // is reported in Stats; check.hpp checks row sums independently with rays.
 // Storage: double (8 N^2 bytes), see dense.hpp.
@@ -46,6 +56,11 @@ namespace lambert::formfactor {
 //          converges to).
 enum class Rule { Adaptive, Point, Gauss };
 
+// How partially occluded pairs get their visible part (see above). "auto", "exact", "rays" (to_string/parse).
+enum class VisibilityMethod { Auto, Exact, Rays };
+std::string to_string(VisibilityMethod m);
+VisibilityMethod parse_visibility_method(std::string_view text);  // throws InputError naming the choices
+
 // Reuse of a previous assembly on a geometry sharing identical patches (adaptive refinement).
 struct Reuse {
   const DenseMatrixOperator* previous = nullptr;
@@ -66,6 +81,9 @@ struct Options {
   int order = 1;            // Rule::Gauss: points per side of the source rule, 1..8
   const Reuse* reuse = nullptr;  // null: compute every pair
   bool visibility = true;   // false: every pair is treated as unoccluded
+  // exact, rays or auto (see above). Default rays: the exact path is ~100x the cost of a 16-ray estimate per pair
+  // (docs/benchmarks.md, "Exact visibility"), too slow to be the default yet.
+  VisibilityMethod visibility_method = VisibilityMethod::Rays;
   int rays_per_pair = 16;   // rays R for a pair that may be occluded: R stratified points on each patch, paired by a
                             // seeded random permutation (x16 / x81 for pairs carrying >= 2% / 10% of a row)
   int threads = 0;          // 0 = all cores (or the caller's tbb::global_control); otherwise a task_arena of this size
@@ -102,6 +120,14 @@ struct Stats {
   long long pairs_orientation_culled = 0;  // one is behind the other's plane (or coplanar): F = 0, no work
   long long pairs_shaft_culled = 0;        // potentially visible but proven unoccluded by shaft culling: no rays
   long long pairs_ray_tested = 0;          // visible fraction estimated with rays
+  std::string visibility_method = "rays";  // Options::visibility_method
+  // Exact path (pairs not shaft-culled that took it): proven clear by the convex-hull test, proven hidden by one
+  // occluder, integrated by the adaptive outer rule (its point evaluations, pairs stopped above tolerance).
+  long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;
+  long long exact_points = 0, pairs_exact_over_tolerance = 0;
+  // Exact path: occluder patches merged with coplanar touching neighbours (a meshed wall or block face) into
+  // this many polygons, one per connected region of their union.
+  int occluders_merged = 0, occluder_regions = 0;
   std::map<std::string, long long> pairs_by_method;  // unoccluded-integral method per computed pair
   long long rays_cast = 0;
   bool scene_can_occlude = false;  // false: no patch can block another (convex enclosure), no rays at all
@@ -140,11 +166,13 @@ struct Stats {
   // Entries F_ij outside [0, 1] (never clamped silently):
   long long entries_roundoff = 0;      // outside by at most the entry's error bound + 1e-14: set to 0 or 1, counted
   long long entries_outside_unit = 0;  // outside by more (left as computed): untrustworthy, must be 0
-  long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance
+  long long pairs_over_tolerance = 0;  // adaptive integration stopped (interval limit) above the tolerance;
+                                       // includes pairs_exact_over_tolerance (the exact path's point limit)
   long long pairs_no_visible_sample = 0;  // ray-tested pairs where no sample pair faced each other: F set to 0
   long long pairs_reused = 0;          // copied from Options::reuse (not computed, no rays)
   // "setup", "bvh", "form_factors" (integration + visibility), "visibility" (its share of form_factors,
-  // from thread times), "stats" (row sums, the reciprocity check)
+  // from thread times), "visibility_exact" and "visibility_rays" (the shares of the two paths in it, same
+  // basis), "stats" (row sums, the reciprocity check)
   std::map<std::string, double> seconds;
   std::size_t bytes = 0;                  // dense matrix size
 };

@@ -4,6 +4,7 @@
 // order; only the front emits and receives (one-sided), so a polygon seen from behind contributes 0.
 #include <span>
 #include <string>
+#include <vector>
 
 #include "lambert/mesh/types.hpp"
 
@@ -28,5 +29,16 @@ struct PairResult {
   double error_estimate = 0;  // estimated absolute error of F (a priori bound or adaptive estimate)
 };
 PairResult polygon_to_polygon(std::span<const Vec3> Pi, std::span<const Vec3> Pj, double tolerance = 1e-8);
+
+// With occluders (exact visibility, docs/physics.md §6): the same quantities counting only what x (or each
+// point of P_i) sees past the occluders, planar simple polygons that block on both sides (an occluder in the
+// plane of x or of a patch blocks nothing). The hidden part is computed exactly per point (occluders clipped
+// to the cone from x through P, projected on P's plane, united in integer coordinates of ~1e-9 of P's size,
+// contour-integrated) and integrated over P_i adaptively to `tolerance`. Results are in [0, unoccluded].
+double visible_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> polygon,
+                                const std::vector<std::vector<Vec3>>& occluders);
+// method: the unoccluded integral's method; error_estimate adds the hidden part's error estimate.
+PairResult visible_polygon_to_polygon(std::span<const Vec3> Pi, std::span<const Vec3> Pj,
+                                      const std::vector<std::vector<Vec3>>& occluders, double tolerance = 1e-8);
 
 }  // namespace lambert::formfactor

@@ -1,0 +1,683 @@
+// Exact partial visibility: occluders clipped to the cone from a point through the target, projected onto the
+// target's plane, united with Clipper (integer coordinates), and the union's contour integral subtracted.
+#include "exact_visibility.hpp"
+
+#include <polyclipping/clipper.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <queue>
+
+#include "lambert/formfactor/kernel.hpp"
+
+namespace lambert::formfactor::detail {
+
+struct ExactScratch {
+  std::vector<std::vector<Vec3>> surv;  // clipped occluders (first `count` used)
+  std::vector<bool> surv_convex;
+  std::vector<Vec3> a, b;               // clipping ping-pong
+  std::vector<std::array<double, 4>> planes;  // m.x, m.y, m.z, c: keep m.q - c >= 0
+  ClipperLib::Clipper clipper;
+  ClipperLib::Paths subject, result;
+  ClipperLib::Path clip_path;
+  std::vector<Vec3> lifted, cs, ct, pts;
+  std::vector<Occluder> kept;
+  std::vector<std::array<double, 4>> hull;
+};
+
+void ExactScratchDeleter::operator()(ExactScratch* s) const { delete s; }
+ExactScratchPtr make_exact_scratch() { return ExactScratchPtr(new ExactScratch()); }
+
+namespace {
+
+// Keeps the part of `in` with m.q - c >= 0 (Sutherland-Hodgman) into `out`. A polygon entirely on one side
+// is copied or dropped without arithmetic on its corners.
+void clip_keep(const std::vector<Vec3>& in, const Vec3& m, double c, std::vector<Vec3>& out) {
+  out.clear();
+  const size_t k = in.size();
+  if (k < 3) return;
+  bool all_in = true, all_out = true;
+  for (const Vec3& q : in) {
+    const double d = m.dot(q) - c;
+    all_in = all_in && d >= 0;
+    all_out = all_out && d <= 0;
+  }
+  if (all_in) {
+    out = in;
+    return;
+  }
+  if (all_out) return;
+  double dp = m.dot(in[k - 1]) - c;
+  for (size_t i = 0; i < k; ++i) {
+    const Vec3& prev = in[(i + k - 1) % k];
+    const Vec3& cur = in[i];
+    const double dc = m.dot(cur) - c;
+    if (dc >= 0) {
+      if (dp < 0) out.push_back(prev + (cur - prev) * (dp / (dp - dc)));
+      out.push_back(cur);
+    } else if (dp > 0) {
+      out.push_back(prev + (cur - prev) * (dp / (dp - dc)));
+    }
+    dp = dc;
+  }
+  if (out.size() < 3) out.clear();
+}
+
+// Signed Lambert contour sum (no absolute value, no 1/2pi): sum_k theta_k n.c_k/|c_k|.
+double signed_contour(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
+  const size_t m = poly.size();
+  double sum = 0;
+  Vec3 a = poly[0] - x;
+  for (size_t k = 0; k < m; ++k) {
+    const Vec3& v1 = poly[(k + 1) % m];
+    const Vec3 b = v1 - x;
+    const Vec3 c = a.cross(v1 - poly[k]);
+    const double cn = c.norm();
+    if (cn > 0) sum += std::atan2(cn, a.dot(b)) * (n.dot(c) / cn);
+    a = b;
+  }
+  return sum;
+}
+
+Vec3 average(std::span<const Vec3> poly) {
+  Vec3 c = Vec3::Zero();
+  for (const Vec3& v : poly) c += v;
+  return c / double(poly.size());
+}
+
+// True if the ray from x through every corner of `target` meets the convex planar polygon q (closed), at a
+// parameter in (0, 1]: then q hides the whole target from x (central projection preserves convexity).
+bool covers(const Vec3& x, std::span<const Vec3> target, const std::vector<Vec3>& q) {
+  const Vec3 nq = mesh::newell_normal(q);
+  const double len = nq.norm();
+  if (!(len > 0)) return false;
+  const Vec3 u = nq / len;
+  const double oq = u.dot(q[0] - x);
+  for (const Vec3& tk : target) {
+    const Vec3 d = tk - x;
+    const double den = u.dot(d);
+    if (den == 0) return false;
+    const double lam = oq / den;
+    if (!(lam > 0 && lam <= 1)) return false;
+    const Vec3 p = x + lam * d;
+    const size_t m = q.size();
+    for (size_t k = 0; k < m; ++k) {
+      const Vec3 e = q[(k + 1) % m] - q[k];
+      if (e.cross(p - q[k]).dot(u) < -1e-12 * e.squaredNorm()) return false;
+    }
+  }
+  return true;
+}
+
+constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
+
+}  // namespace
+
+double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target, const Vec3& nt,
+                               bool target_convex, std::span<const Occluder> occluders, ExactScratch& S) {
+  const size_t mt = target.size();
+  if (mt < 3 || occluders.empty()) return 0;
+  const double hx = nt.dot(x - target[0]);
+  if (!(hx > 0)) return 0;
+  const Vec3 tc = average(target);
+  // Frame of the target's plane: u along the first usable edge, v = nt x u.
+  Vec3 u = Vec3::Zero();
+  for (size_t k = 0; k < mt && !(u.squaredNorm() > 0); ++k) u = target[(k + 1) % mt] - target[k];
+  u.normalize();
+  const Vec3 v = nt.cross(u);
+  // The cone from x through the target (its edges if convex, else its bounding rectangle in the frame).
+  S.planes.clear();
+  auto add_side = [&](const Vec3& a, const Vec3& b) {
+    Vec3 m = (a - x).cross(b - x);
+    if (!(m.squaredNorm() > 0)) return;
+    if (m.dot(tc - x) < 0) m = -m;
+    S.planes.push_back({m.x(), m.y(), m.z(), m.dot(x)});
+  };
+  double R = 0;
+  if (target_convex) {
+    for (size_t k = 0; k < mt; ++k) add_side(target[k], target[(k + 1) % mt]);
+    for (const Vec3& p : target) R = std::max({R, std::abs(u.dot(p - tc)), std::abs(v.dot(p - tc))});
+  } else {
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (const Vec3& p : target) {
+      const double a = u.dot(p - tc), b = v.dot(p - tc);
+      lo[0] = std::min(lo[0], a), hi[0] = std::max(hi[0], a), lo[1] = std::min(lo[1], b), hi[1] = std::max(hi[1], b);
+    }
+    const double pad = 1e-6 * std::max(hi[0] - lo[0], hi[1] - lo[1]);
+    lo[0] -= pad, lo[1] -= pad, hi[0] += pad, hi[1] += pad;
+    const Vec3 B[4] = {tc + lo[0] * u + lo[1] * v, tc + hi[0] * u + lo[1] * v, tc + hi[0] * u + hi[1] * v,
+                       tc + lo[0] * u + hi[1] * v};
+    for (int k = 0; k < 4; ++k) add_side(B[k], B[(k + 1) % 4]);
+    R = std::max({-lo[0], hi[0], -lo[1], hi[1]});
+  }
+  R *= 1 + 1e-6;
+  const double t0 = nt.dot(target[0]);
+  S.planes.push_back({nt.x(), nt.y(), nt.z(), t0});                               // not behind the target
+  const double top = t0 + hx * (1 - 1e-12);
+  S.planes.push_back({-nt.x(), -nt.y(), -nt.z(), -top});                          // between x and the target
+  S.planes.push_back({n.x(), n.y(), n.z(), n.dot(x)});                             // in front of x
+  // Occluders clipped to the cone.
+  size_t count = 0;
+  for (const Occluder& o : occluders) {
+    S.a.assign(o.poly.begin(), o.poly.end());
+    for (const auto& pl : S.planes) {
+      clip_keep(S.a, Vec3(pl[0], pl[1], pl[2]), pl[3], S.b);
+      std::swap(S.a, S.b);
+      if (S.a.empty()) break;
+    }
+    if (S.a.size() < 3) continue;
+    if (S.surv.size() <= count) S.surv.emplace_back(), S.surv_convex.push_back(false);
+    std::swap(S.surv[count], S.a);
+    S.surv_convex[count] = o.convex;
+    ++count;
+  }
+  if (count == 0) return 0;
+  if (count == 1 && target_convex) return std::abs(signed_contour(x, n, S.surv[0])) / (2 * kPi);
+  for (size_t k = 0; k < count; ++k)
+    if (S.surv_convex[k] && covers(x, target, S.surv[k])) return std::abs(signed_contour(x, n, target)) / (2 * kPi);
+  // Union of the projections on the target's plane (integer coordinates, kSnap per R), intersected with the
+  // target when the cone was only its bounding rectangle.
+  const double scale = kSnap / R, inv = R / kSnap;
+  const double lim = double(ClipperLib::loRange);
+  auto snap = [&](double a) { return ClipperLib::cInt(std::llround(std::clamp(a * scale, -lim, lim))); };
+  S.subject.resize(count);
+  for (size_t k = 0; k < count; ++k) {
+    ClipperLib::Path& path = S.subject[k];
+    path.clear();
+    for (const Vec3& q : S.surv[k]) {
+      const double hq = nt.dot(q) - t0;
+      const Vec3 y = x + (q - x) * (hx / (hx - hq));
+      path.push_back({snap(u.dot(y - tc)), snap(v.dot(y - tc))});
+    }
+    if (!ClipperLib::Orientation(path)) ClipperLib::ReversePath(path);
+  }
+  S.clipper.Clear();
+  S.clipper.AddPaths(S.subject, ClipperLib::ptSubject, true);
+  if (target_convex) {
+    S.clipper.Execute(ClipperLib::ctUnion, S.result, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+  } else {
+    S.clip_path.clear();
+    for (const Vec3& p : target) S.clip_path.push_back({snap(u.dot(p - tc)), snap(v.dot(p - tc))});
+    if (!ClipperLib::Orientation(S.clip_path)) ClipperLib::ReversePath(S.clip_path);
+    S.clipper.AddPath(S.clip_path, ClipperLib::ptClip, true);
+    S.clipper.Execute(ClipperLib::ctIntersection, S.result, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+  }
+  // Outer paths are counter-clockwise in (u, v), holes clockwise: their signed contour sums add up.
+  double total = 0;
+  for (const ClipperLib::Path& path : S.result) {
+    if (path.size() < 3) continue;
+    S.lifted.clear();
+    for (const auto& ip : path) S.lifted.push_back(tc + (double(ip.X) * inv) * u + (double(ip.Y) * inv) * v);
+    total += signed_contour(x, n, S.lifted);
+  }
+  return std::abs(total) / (2 * kPi);
+}
+
+double visible_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target,
+                                std::span<const Occluder> occluders) {
+  const double full = point_to_polygon(x, n, target);
+  if (!(full > 0) || occluders.empty()) return full;
+  thread_local ExactScratchPtr S = make_exact_scratch();
+  const Vec3 nn = n.normalized();
+  const Vec3 nt = mesh::newell_normal(target).normalized();
+  // The part of the target in front of x (as point_to_polygon sees it).
+  std::vector<Vec3> front;
+  clip_front(target, nn, nn.dot(x), 0.0, front);
+  if (front.size() < 3) return 0;
+  // Convexity of the clipped target: every turn has the normal's sign.
+  bool convex = true;
+  for (size_t k = 0; k < front.size() && convex; ++k) {
+    const Vec3 e0 = front[(k + 1) % front.size()] - front[k], e1 = front[(k + 2) % front.size()] - front[(k + 1) % front.size()];
+    convex = e0.cross(e1).dot(nt) >= 0;
+  }
+  const double h = hidden_point_to_polygon(x, nn, front, nt, convex, occluders, *S);
+  return std::max(0.0, full - h);
+}
+
+namespace {
+
+// Elements of the adaptive outer rule: bilinear quads (corners v0..v3) or triangles (v0..v2). A leaf holds its
+// own rule's value Q and the values of its candidate bisections (quads: across s or across t; triangles: at the
+// midpoint of each edge); it is refined by the bisection that changes Q most. Bisection (not quartering) lets
+// elements become thin along a straight penumbra kink, so a kink parallel to a source edge (the common case
+// in architecture) costs O(log 1/tol) elements instead of O(1/h).
+struct Elem {
+  std::array<Vec3, 4> v;
+  bool quad = false;
+  double Q = 0;  // the element's own rule applied to F_hidden
+  bool has_Q = false;
+  int kind = -1;  // what its samples saw: 0 nothing hidden, 1 the whole target hidden, 2 partly (or mixed)
+};
+int combine(int a, int b) { return a < 0 ? b : b < 0 ? a : a == b ? a : 2; }
+struct Leaf {
+  Elem e;
+  std::array<Elem, 6> kids;  // bisections: pairs (kids[2d], kids[2d+1]) for direction d
+  int dirs = 0, best = 0;
+  int occ_begin = 0, occ_count = 0;  // the element's occluders (in the pair's pool)
+  double value = 0, err = 0;  // value of the best bisection; max over directions of |Q - bisection|
+  bool operator<(const Leaf& o) const { return err < o.err; }
+};
+
+// Forced refinement of shadow-reachable elements whose samples see no shadow, down to this fraction of the
+// source's area.
+constexpr double kForcedArea = 1.0 / 64;
+
+
+Vec3 bilinear(const std::array<Vec3, 4>& v, double s, double t) {
+  return (1 - s) * (1 - t) * v[0] + s * (1 - t) * v[1] + s * t * v[2] + (1 - s) * t * v[3];
+}
+
+// The candidates that meet the convex hull of cs and ct (through an edge of one and a corner of the other,
+// every corner on one side; an occluder with every corner beyond one of its planes, or behind either patch's
+// plane, meets no segment between the two), appended to `kept`. Returns kClear if none does, kHidden if one
+// convex occluder is crossed strictly inside by every segment between corners of cs and ct (the crossings of
+// all segments form the convex hull of those corner crossings: the pair is hidden), else kIntegrated.
+int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns, const Vec3& nt, double os,
+             double ot, std::span<const Occluder> candidates, double eps, ExactScratch& S,
+             std::vector<Occluder>& kept) {
+  S.pts.assign(cs.begin(), cs.end());
+  S.pts.insert(S.pts.end(), ct.begin(), ct.end());
+  S.hull.clear();
+  auto hull_planes = [&](std::span<const Vec3> P, std::span<const Vec3> Q) {
+    for (size_t k = 0; k < P.size(); ++k) {
+      const Vec3 &a = P[k], &b = P[(k + 1) % P.size()];
+      for (const Vec3& c : Q) {
+        Vec3 m = (b - a).cross(c - a);
+        const double len = m.norm();
+        if (!(len > 0)) continue;
+        m /= len;
+        double lo = INFINITY, hi = -INFINITY;
+        for (const Vec3& p : S.pts) {
+          const double d = m.dot(p - a);
+          lo = std::min(lo, d), hi = std::max(hi, d);
+        }
+        if (hi <= eps) S.hull.push_back({m.x(), m.y(), m.z(), m.dot(a)});
+        else if (lo >= -eps) S.hull.push_back({-m.x(), -m.y(), -m.z(), -m.dot(a)});
+      }
+    }
+  };
+  hull_planes(cs, ct);
+  hull_planes(ct, cs);
+  const size_t first = kept.size();
+  for (const Occluder& o : candidates) {
+    bool behind_s = true, behind_t = true;
+    for (const Vec3& q : o.poly) {
+      behind_s = behind_s && ns.dot(q) - os <= eps;
+      behind_t = behind_t && nt.dot(q) - ot <= eps;
+    }
+    if (behind_s || behind_t) continue;
+    bool outside = false;
+    for (const auto& h : S.hull) {
+      const Vec3 m(h[0], h[1], h[2]);
+      bool all = true;
+      for (const Vec3& q : o.poly)
+        if (!(m.dot(q) - h[3] > eps)) {
+          all = false;
+          break;
+        }
+      if (all) {
+        outside = true;
+        break;
+      }
+    }
+    if (!outside) kept.push_back(o);
+  }
+  if (kept.size() == first) return ExactPairResult::kClear;
+  for (size_t k = first; k < kept.size(); ++k) {
+    const Occluder& o = kept[k];
+    if (!o.convex) continue;
+    const Vec3 nq = mesh::newell_normal(o.poly).normalized();
+    const double oq = nq.dot(o.poly[0]);
+    bool all = true;
+    for (size_t i = 0; i < cs.size() && all; ++i)
+      for (size_t j = 0; j < ct.size() && all; ++j) {
+        const double da = nq.dot(cs[i]) - oq, db = nq.dot(ct[j]) - oq;
+        if (!((da > eps && db < -eps) || (da < -eps && db > eps))) {
+          all = false;
+          break;
+        }
+        const Vec3 p = cs[i] + (ct[j] - cs[i]) * (da / (da - db));
+        const size_t m = o.poly.size();
+        for (size_t q = 0; q < m; ++q) {
+          const Vec3 e = o.poly[(q + 1) % m] - o.poly[q];
+          if (e.cross(p - o.poly[q]).dot(nq) < 0) {
+            all = false;
+            break;
+          }
+        }
+      }
+    if (all) {
+      kept[first] = o;  // the hiding occluder alone is enough from anywhere in cs
+      kept.resize(first + 1);
+      return ExactPairResult::kHidden;
+    }
+  }
+  return ExactPairResult::kIntegrated;
+}
+
+}  // namespace
+
+ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, double area_s, bool s_convex,
+                                  std::span<const Vec3> t, const Vec3& nt, bool t_convex,
+                                  std::span<const Occluder> candidates, double tol, double scale,
+                                  ExactScratch& S) {
+  ExactPairResult res;
+  const double eps = 1e-10 * scale;
+  // The parts of s and t in front of each other: only those exchange light.
+  clip_front(s, nt, nt.dot(t[0]), eps, S.cs);
+  clip_front(t, ns, ns.dot(s[0]), eps, S.ct);
+  if (S.cs.size() < 3 || S.ct.size() < 3 || candidates.empty()) return res;
+  const std::vector<Vec3> cs = S.cs, ct = S.ct;
+  const double os = ns.dot(s[0]), ot = nt.dot(t[0]);
+  std::vector<Occluder> pool;  // occluder lists of the elements: [begin, begin + count) per element
+  const int root_outcome = classify(cs, ct, ns, nt, os, ot, candidates, eps, S, pool);
+  if (root_outcome == ExactPairResult::kClear || root_outcome == ExactPairResult::kHidden) {
+    res.outcome = ExactPairResult::Outcome(root_outcome);
+    return res;
+  }
+  res.outcome = ExactPairResult::kIntegrated;
+  const int root_count = int(pool.size());
+  int cur_begin = 0, cur_count = 0;  // the occluder list f() uses
+  int sample_kind = -1;  // combined kind of the samples since the last reset
+  auto f = [&](const Vec3& p) {
+    ++res.points;
+    const double h = hidden_point_to_polygon(p, ns, ct, nt, t_convex,
+                                             std::span<const Occluder>(pool.data() + cur_begin, size_t(cur_count)), S);
+    sample_kind = combine(sample_kind, !(h > 0) ? 0 : h >= (1 - 1e-9) * contour_sum(p, ns, ct) ? 1 : 2);
+    return h;
+  };
+  auto rule = [&](Elem& e) {
+    double q = 0;
+    sample_kind = -1;
+    if (e.quad) {
+      constexpr double x3[3] = {0.11270166537925831148, 0.5, 0.88729833462074168852};
+      constexpr double w3[3] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
+      for (int ia = 0; ia < 3; ++ia)
+        for (int ib = 0; ib < 3; ++ib) {
+          const double a = x3[ia], b = x3[ib];
+          const Vec3 ds = (1 - b) * (e.v[1] - e.v[0]) + b * (e.v[2] - e.v[3]);
+          const Vec3 dt = (1 - a) * (e.v[3] - e.v[0]) + a * (e.v[2] - e.v[1]);
+          const double J = std::abs(ds.cross(dt).dot(ns));
+          q += w3[ia] * w3[ib] * J * f(bilinear(e.v, a, b));
+        }
+    } else {
+      const double A = 0.5 * std::abs((e.v[1] - e.v[0]).cross(e.v[2] - e.v[0]).dot(ns));
+      // Dunavant's 6-point rule, degree 4: barycentric (a, a, 1 - 2a) and permutations, two orbits.
+      constexpr double a1 = 0.445948490915965, w1 = 0.223381589678011, a2 = 0.091576213509771, w2 = 0.109951743655322;
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 &p0 = e.v[k], &p1 = e.v[(k + 1) % 3], &p2 = e.v[(k + 2) % 3];
+        q += A * w1 * f((1 - 2 * a1) * p0 + a1 * (p1 + p2));
+        q += A * w2 * f((1 - 2 * a2) * p0 + a2 * (p1 + p2));
+      }
+      e.Q = q;
+      e.has_Q = true;
+      e.kind = sample_kind;
+      return;
+    }
+    e.Q = q;
+    e.has_Q = true;
+    e.kind = sample_kind;
+  };
+  std::priority_queue<Leaf> heap;
+  double total_err = 0;
+  // An element is classified against its parent's occluders first: one no occluder reaches contributes 0 with
+  // no point evaluated; one whose samples all see no shadow although an occluder reaches it keeps being refined
+  // (error = its unoccluded contribution), so a shadow smaller than the sample spacing is never missed.
+  std::vector<Vec3> corners;
+  auto push = [&](Elem e, int parent_begin, int parent_count) {
+    Leaf l;
+    corners.assign(e.v.begin(), e.v.begin() + (e.quad ? 4 : 3));
+    l.occ_begin = int(pool.size());
+    std::vector<Occluder> parent(pool.begin() + parent_begin, pool.begin() + parent_begin + parent_count);
+    const int outcome = classify(corners, ct, ns, nt, os, ot, parent, eps, S, pool);
+    l.occ_count = int(pool.size()) - l.occ_begin;
+    if (outcome == ExactPairResult::kClear) return;  // F_hidden = 0 on e, exactly
+    cur_begin = l.occ_begin, cur_count = l.occ_count;
+    if (!e.has_Q) rule(e);
+    l.e = e;
+    if (e.quad) {
+      l.dirs = 2;
+      const Vec3 ms0 = bilinear(e.v, 0.5, 0), ms1 = bilinear(e.v, 0.5, 1);  // across s
+      const Vec3 mt0 = bilinear(e.v, 0, 0.5), mt1 = bilinear(e.v, 1, 0.5);  // across t
+      l.kids[0].v = {e.v[0], ms0, ms1, e.v[3]};
+      l.kids[1].v = {ms0, e.v[1], e.v[2], ms1};
+      l.kids[2].v = {e.v[0], e.v[1], mt1, mt0};
+      l.kids[3].v = {mt0, mt1, e.v[2], e.v[3]};
+    } else {
+      l.dirs = 3;
+      for (int d = 0; d < 3; ++d) {
+        const Vec3 &a = e.v[d], &b = e.v[(d + 1) % 3], &c = e.v[(d + 2) % 3];
+        const Vec3 m = 0.5 * (a + b);
+        l.kids[2 * d].v = {a, m, c, Vec3::Zero()};
+        l.kids[2 * d + 1].v = {m, b, c, Vec3::Zero()};
+      }
+    }
+    double best = -1;
+    for (int d = 0; d < l.dirs; ++d) {
+      for (int k = 0; k < 2; ++k) {
+        l.kids[2 * d + k].quad = e.quad;
+        rule(l.kids[2 * d + k]);
+      }
+      const double v = l.kids[2 * d].Q + l.kids[2 * d + 1].Q, change = std::abs(e.Q - v);
+      if (change > best) best = change, l.best = d, l.value = v;
+      l.err = std::max(l.err, change);
+    }
+    if (!(best > 0)) {  // no direction changes anything: bisect the longest side (the samples carry no information)
+      double longest = -1;
+      for (int d = 0; d < l.dirs; ++d) {
+        const double len = e.quad ? (d == 0 ? (e.v[1] - e.v[0]).norm() + (e.v[2] - e.v[3]).norm()
+                                            : (e.v[3] - e.v[0]).norm() + (e.v[2] - e.v[1]).norm())
+                                  : (e.v[(d + 1) % 3] - e.v[d]).norm();
+        if (len > longest) longest = len, l.best = d, l.value = l.kids[2 * d].Q + l.kids[2 * d + 1].Q;
+      }
+    }
+    const double A = e.quad ? std::abs((e.v[2] - e.v[0]).cross(e.v[3] - e.v[1]).dot(ns)) * 0.5
+                            : 0.5 * std::abs((e.v[1] - e.v[0]).cross(e.v[2] - e.v[0]).dot(ns));
+    // Forced refinement down to 1/64 of the source (a shadow narrower than that may still be missed when
+    // every sample of its element is outside it; the hull test keeps such elements "mixed" only while an
+    // occluder can still reach them).
+    int kind = e.kind;
+    for (int d = 0; d < 2 * l.dirs; ++d) kind = combine(kind, l.kids[d].kind);
+    // Every sample saw nothing hidden, or the whole target hidden, although the element is neither provably
+    // clear nor provably hidden: a shadow edge (or a gap between shadows) may pass between the samples.
+    if ((kind == 0 || kind == 1) && outcome == ExactPairResult::kIntegrated && A > area_s * kForcedArea) {
+      const Vec3 c = e.quad ? bilinear(e.v, 0.5, 0.5) : Vec3((e.v[0] + e.v[1] + e.v[2]) / 3.0);
+      l.err = std::max(l.err, A * contour_sum(c, ns, ct));
+    }
+    total_err += l.err;
+    heap.push(l);
+  };
+  // Roots: the clipped source as one bilinear quad if it is a convex quad, else its triangles.
+  bool convex_quad = false;
+  if (cs.size() == 4 && s_convex) {
+    convex_quad = true;
+    for (int k = 0; k < 4; ++k)
+      convex_quad = convex_quad && (cs[(k + 1) % 4] - cs[k]).cross(cs[(k + 2) % 4] - cs[(k + 1) % 4]).dot(ns) > 0;
+  }
+  if (convex_quad) {
+    Elem e;
+    e.quad = true;
+    e.v = {cs[0], cs[1], cs[2], cs[3]};
+    push(e, 0, root_count);
+  } else {
+    std::vector<std::array<int, 3>> tris;
+    if (!s_convex) tris = mesh::triangulate_polygon(cs, ns);
+    if (tris.empty())
+      for (int k = 1; k + 1 < int(cs.size()); ++k) tris.push_back({0, k, k + 1});
+    for (const auto& T : tris) {
+      Elem e;
+      e.v = {cs[T[0]], cs[T[1]], cs[T[2]], Vec3::Zero()};
+      push(e, 0, root_count);
+    }
+  }
+  constexpr long long kMaxPoints = 1 << 14;
+  const double goal = tol * area_s;
+  while (total_err > goal && res.points < kMaxPoints && !heap.empty()) {
+    const Leaf top = heap.top();
+    heap.pop();
+    total_err -= top.err;
+    push(top.kids[2 * top.best], top.occ_begin, top.occ_count);
+    push(top.kids[2 * top.best + 1], top.occ_begin, top.occ_count);
+  }
+  double H = 0, err = 0;
+  while (!heap.empty()) {
+    H += heap.top().value;
+    err += heap.top().err;
+    heap.pop();
+  }
+  res.H = H / area_s;
+  res.error = err / area_s;
+  res.over_tolerance = err > goal;
+  return res;
+}
+
+namespace {
+bool convex_polygon(std::span<const Vec3> poly, const Vec3& n) {
+  const size_t m = poly.size();
+  for (size_t k = 0; k < m; ++k)
+    if ((poly[(k + 1) % m] - poly[k]).cross(poly[(k + 2) % m] - poly[(k + 1) % m]).dot(n) < 0) return false;
+  return true;
+}
+std::vector<Occluder> as_occluders(const std::vector<std::vector<Vec3>>& polys) {
+  std::vector<Occluder> out;
+  for (const auto& q : polys) {
+    if (q.size() < 3) continue;
+    const Vec3 nq = mesh::newell_normal(q);
+    if (!(nq.norm() > 0)) continue;
+    out.push_back({std::span<const Vec3>(q), convex_polygon(q, nq)});
+  }
+  return out;
+}
+}  // namespace
+
+MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders,
+                                         double scale) {
+  MergedOccluders out;
+  out.of_patch.assign(size_t(g.size()), -1);
+  if (!(scale > 0)) return out;
+  // Unoriented plane of each occluder, quantised (normal to 1e-9, offset to 1e-9 of the scene): a rounding
+  // boundary can only split a group, never join different planes.
+  std::map<std::array<long long, 4>, std::vector<int>> groups;
+  for (int p : occluders) {
+    Vec3 n = g.normal[p];
+    if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;
+    const double d = n.dot(g.centroid[p]);
+    groups[{std::llround(n.x() * 1e9), std::llround(n.y() * 1e9), std::llround(n.z() * 1e9),
+            std::llround(d / (1e-9 * scale))}].push_back(p);
+  }
+  for (const auto& [key, members] : groups) {
+    if (members.size() < 2) continue;
+    Vec3 n = g.normal[members[0]];
+    if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;
+    const Vec3 o = g.centroid[members[0]];
+    const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized(), v = n.cross(u);
+    double R = 0;
+    for (int p : members)
+      for (const Vec3& q : g.polygon(p)) R = std::max({R, std::abs(u.dot(q - o)), std::abs(v.dot(q - o))});
+    if (!(R > 0)) continue;
+    R *= 1 + 1e-6;
+    const double S = kSnap / R, inv = R / kSnap;
+    ClipperLib::Paths in;
+    for (int p : members) {
+      ClipperLib::Path path;
+      for (const Vec3& q : g.polygon(p))
+        path.push_back({ClipperLib::cInt(std::llround(u.dot(q - o) * S)), ClipperLib::cInt(std::llround(v.dot(q - o) * S))});
+      if (!ClipperLib::Orientation(path)) ClipperLib::ReversePath(path);
+      in.push_back(path);
+    }
+    ClipperLib::Clipper c;
+    c.AddPaths(in, ClipperLib::ptSubject, true);
+    ClipperLib::Paths uni;
+    c.Execute(ClipperLib::ctUnion, uni, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+    bool hole = false;
+    for (const auto& path : uni) hole = hole || !ClipperLib::Orientation(path);
+    if (hole || uni.size() >= members.size()) continue;  // holes are not supported; nothing merged: keep patches
+    const int first = int(out.polys.size());
+    for (const auto& path : uni) {
+      std::vector<Vec3> poly;
+      for (const auto& ip : path) poly.push_back(o + (double(ip.X) * inv) * u + (double(ip.Y) * inv) * v);
+      bool convex = true;
+      for (size_t k = 0; k < poly.size() && convex; ++k)
+        convex = (poly[(k + 1) % poly.size()] - poly[k]).cross(poly[(k + 2) % poly.size()] - poly[(k + 1) % poly.size()]).dot(n) >= 0;
+      out.polys.push_back(std::move(poly));
+      out.convex.push_back(convex);
+    }
+    // Each member belongs to the region containing its centroid (strictly inside a convex patch's own corners).
+    for (size_t k = 0; k < members.size(); ++k) {
+      const Vec3& c0 = g.centroid[members[k]];
+      const ClipperLib::IntPoint ip{ClipperLib::cInt(std::llround(u.dot(c0 - o) * S)),
+                                    ClipperLib::cInt(std::llround(v.dot(c0 - o) * S))};
+      for (size_t r = 0; r < uni.size(); ++r)
+        if (ClipperLib::PointInPolygon(ip, uni[r]) != 0) {
+          out.of_patch[size_t(members[k])] = first + int(r);
+          break;
+        }
+    }
+  }
+  return out;
+}
+
+}  // namespace lambert::formfactor::detail
+
+namespace lambert::formfactor {
+
+double visible_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> polygon,
+                                const std::vector<std::vector<Vec3>>& occluders) {
+  if (polygon.size() < 3) return 0;
+  const Vec3 np = mesh::newell_normal(polygon);
+  std::vector<std::vector<Vec3>> kept;
+  for (const auto& q : occluders) {  // occluders in the polygon's plane block nothing
+    bool in_plane = true;
+    const double scale = std::max(1e-300, std::sqrt(np.norm()));
+    for (const Vec3& v : q) in_plane = in_plane && std::abs(np.normalized().dot(v - polygon[0])) <= 1e-12 * scale;
+    if (!in_plane) kept.push_back(q);
+  }
+  const auto occ = detail::as_occluders(kept);
+  return detail::visible_point_to_polygon(x, n, polygon, occ);
+}
+
+PairResult visible_polygon_to_polygon(std::span<const Vec3> Pi, std::span<const Vec3> Pj,
+                                      const std::vector<std::vector<Vec3>>& occluders, double tolerance) {
+  PairResult r = polygon_to_polygon(Pi, Pj, tolerance);
+  if (!(r.F > 0) || occluders.empty()) return r;
+  const Vec3 Ni = mesh::newell_normal(Pi), Nj = mesh::newell_normal(Pj);
+  const double Ai = 0.5 * Ni.norm(), Aj = 0.5 * Nj.norm();
+  const Vec3 ni = Ni.normalized(), nj = Nj.normalized();
+  Eigen::AlignedBox3d box;
+  for (const Vec3& v : Pi) box.extend(v);
+  for (const Vec3& v : Pj) box.extend(v);
+  for (const auto& q : occluders)
+    for (const Vec3& v : q) box.extend(v);
+  const double scale = box.diagonal().norm();
+  // Occluders in either patch's plane block nothing (as in the assembly).
+  std::vector<std::vector<Vec3>> kept;
+  for (const auto& q : occluders) {
+    bool in_i = true, in_j = true;
+    for (const Vec3& v : q) {
+      in_i = in_i && std::abs(ni.dot(v - Pi[0])) <= 1e-9 * scale;
+      in_j = in_j && std::abs(nj.dot(v - Pj[0])) <= 1e-9 * scale;
+    }
+    if (!in_i && !in_j) kept.push_back(q);
+  }
+  const auto occ = detail::as_occluders(kept);
+  const bool swap = Aj < Ai;  // integrate from the smaller patch, as polygon_to_polygon does
+  const auto s = swap ? Pj : Pi, t = swap ? Pi : Pj;
+  const Vec3 &ns = swap ? nj : ni, &nt = swap ? ni : nj;
+  const double As = swap ? Aj : Ai, At = swap ? Ai : Aj;
+  auto scratch = detail::make_exact_scratch();
+  const detail::ExactPairResult h = detail::exact_hidden_pair(s, ns, As, detail::convex_polygon(s, ns), t, nt,
+                                                              detail::convex_polygon(t, nt), occ, tolerance, scale, *scratch);
+  const double Fst = swap ? r.F_reverse : r.F;
+  double Fv = Fst, err = 0;
+  if (h.outcome == detail::ExactPairResult::kHidden) Fv = 0;
+  if (h.outcome == detail::ExactPairResult::kIntegrated) Fv = std::max(0.0, Fst - h.H), err = h.error;
+  const double Fts = Fv * As / At;
+  r.F = swap ? Fts : Fv;
+  r.F_reverse = swap ? Fv : Fts;
+  r.error_estimate += swap ? err * As / At : err;
+  return r;
+}
+
+}  // namespace lambert::formfactor

@@ -1,0 +1,79 @@
+#pragma once
+// Exact (analytic) partial visibility (internal; docs/physics.md §6). For a receiving point x and a target
+// polygon P, the occluders between x and P are clipped to the cone from x through P, projected from x onto
+// P's plane, united (Clipper, integer coordinates) and the contour integral of their union is the form factor
+// of the hidden part of P; F_visible(x -> P) = F(x -> P) - F_hidden. The patch-to-patch value integrates
+// F_hidden over the source with an adaptive outer rule (element against its four children), so penumbra
+// kinks are resolved to a requested absolute tolerance.
+//
+// Units: metres; form factors dimensionless. Occluders are planar simple polygons (any orientation: both
+// sides block). The caller chooses the occluders (a BVH or shaft query); occluders lying in the plane of the
+// source or the target must be left out by the caller (they cannot block, see visibility.hpp).
+// Deterministic: no state is shared between calls except the caller's scratch buffers.
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "internal.hpp"
+
+namespace lambert::formfactor::detail {
+
+struct ExactScratch;  // per-thread buffers (Clipper, clipped polygons); exact_visibility.cpp
+struct ExactScratchDeleter {
+  void operator()(ExactScratch* s) const;
+};
+using ExactScratchPtr = std::unique_ptr<ExactScratch, ExactScratchDeleter>;
+ExactScratchPtr make_exact_scratch();
+
+// An occluder: its corners and whether it is convex (enables the "covers the whole cone" shortcut).
+struct Occluder {
+  std::span<const Vec3> poly;
+  bool convex = false;
+};
+
+// F(x -> hidden part of target): x a point with unit normal n; target a planar simple polygon with unit
+// normal nt (front side towards x) lying in x's closed front half-space (clip it first), target_convex true
+// only if it is convex. Returns a value in [0, F(x -> target)] (up to rounding of the snapped 2D union,
+// ~1e-9 relative to the target's size). 0 if x is not strictly in front of the target's plane.
+double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target, const Vec3& nt,
+                               bool target_convex, std::span<const Occluder> occluders, ExactScratch& scratch);
+
+// Convenience for callers outside the assembly (hierarchical links, tests): the visible point-to-polygon
+// form factor, point_to_polygon(x, n, target) minus its hidden part; target may straddle x's plane.
+double visible_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target,
+                                std::span<const Occluder> occluders);
+
+// The hidden part of the pair (s -> t): H = (1/A_s) integral over s of F_hidden(x -> t) dA(x), so that
+// F_st(visible) = F_st(unoccluded) - H.
+struct ExactPairResult {
+  enum Outcome { kClear = 0, kHidden = 1, kIntegrated = 2 };
+  Outcome outcome = kClear;  // clear: no candidate meets the convex hull of s and t (H = 0, exact);
+                             // hidden: one convex occluder meets every segment between them (H = F_st);
+                             // integrated: adaptive outer rule
+  double H = 0;              // hidden part of F_st (integrated only)
+  double error = 0;          // estimated absolute error of H
+  long long points = 0;      // point evaluations
+  bool over_tolerance = false;  // stopped at the evaluation limit above the tolerance
+};
+// s, t: polygons with unit normals and areas; s_convex / t_convex as for hidden_point_to_polygon. candidates:
+// occluders that may lie between them (others are culled here against the convex hull of s and t). tol: the
+// absolute error allowed on H. scale: the scene's size (plane tolerances are relative to it).
+ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, double area_s, bool s_convex,
+                                  std::span<const Vec3> t, const Vec3& nt, bool t_convex,
+                                  std::span<const Occluder> candidates, double tol, double scale,
+                                  ExactScratch& scratch);
+
+// Occluders lying in one plane and touching or overlapping each other (a wall or a block face meshed into a grid,
+// both sides of a two-sided face) block exactly what their union blocks: they are merged into one polygon per
+// connected region of the union (Clipper, in the plane's integer frame: corners move by <= 1e-9 of the region's
+// size), where the plane's union has no hole. Fewer, larger occluders: fewer clips per point, and a region that
+// hides a pair alone can prove it hidden. Deterministic (groups in sorted plane order).
+struct MergedOccluders {
+  std::vector<std::vector<Vec3>> polys;
+  std::vector<std::uint8_t> convex;
+  std::vector<int> of_patch;  // per patch of the geometry: its merged polygon, or -1 (the patch is used as it is)
+};
+MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
+
+}  // namespace lambert::formfactor::detail
