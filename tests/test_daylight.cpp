@@ -23,6 +23,7 @@
 #include <vtkXMLUnstructuredGridReader.h>
 
 #include "cli_util.hpp"
+#include "test_formfactor_util.hpp"
 #include "lambert/daylight/sky.hpp"
 #include "lambert/formfactor/kernel.hpp"
 #include "lambert/mesh/geometry.hpp"
@@ -327,29 +328,6 @@ TEST_F(Daylight, UniformSkyBlackRoomMatchesPointToPolygonClosedForm) {
   }
 }
 
-// Gauss-Legendre nodes and weights on [0, 1].
-void gauss01(int m, std::vector<double>& x, std::vector<double>& w) {
-  x.resize(size_t(m));
-  w.resize(size_t(m));
-  for (int i = 0; i < m; ++i) {
-    double z = std::cos(kPi * (i + 0.75) / (m + 0.5)), dp = 0;
-    for (int it = 0; it < 100; ++it) {
-      double p0 = 1, p1 = z;
-      for (int k = 2; k <= m; ++k) {
-        const double p2 = ((2 * k - 1) * z * p1 - (k - 1) * p0) / k;
-        p0 = p1;
-        p1 = p2;
-      }
-      dp = m * (z * p1 - p0) / (z * z - 1);
-      const double dz = p1 / dp;
-      z -= dz;
-      if (std::abs(dz) < 1e-16) break;
-    }
-    x[size_t(i)] = 0.5 * (1 - z);
-    w[size_t(i)] = 1 / ((1 - z * z) * dp * dp);
-  }
-}
-
 // CIE overcast sky, black room: the daylight factor against brute-force quadrature of L(omega) (n.omega) over
 // the window (composite Gauss-Legendre, 16 x 16 panels of 16 x 16 points on each part of the window above and
 // below the sensor's horizon: the integrand is smooth on each), within 1e-4 (absolute, in %; the target;
@@ -360,7 +338,7 @@ TEST_F(Daylight, OvercastSkyBlackRoomMatchesBruteForceQuadrature) {
   ASSERT_EQ(rows.size(), 6u);
   const double Eh = 7 * kPi / 9 * Lz;
   std::vector<double> gx, gw;
-  gauss01(16, gx, gw);
+  fftest::gauss01(16, gx, gw);
   std::stringstream in(kSensors);
   std::string line;
   std::getline(in, line);

@@ -14,6 +14,7 @@
 #include <tuple>
 
 #include "lambert/formfactor/kernel.hpp"
+#include "clip.hpp"
 
 namespace lambert::daylight {
 namespace {
@@ -42,27 +43,6 @@ void patch_samples(const mesh::PatchGeometry& g, int p, int count, std::vector<S
         if (i + j + 1 < s) out.push_back({A + (i + 2.0 / 3) * u + (j + 2.0 / 3) * v, area});  // inverted one
       }
   }
-}
-
-// Sutherland-Hodgman on corners relative to the apex: the part with d . p >= 0.
-void clip_plane(const std::vector<Vec3>& poly, const Vec3& d, std::vector<Vec3>& out) {
-  out.clear();
-  const size_t m = poly.size();
-  if (m == 0) return;
-  double sp = d.dot(poly[m - 1]);
-  for (size_t k = 0; k < m; ++k) {
-    const Vec3& prev = poly[(k + m - 1) % m];
-    const Vec3& cur = poly[k];
-    const double sc = d.dot(cur);
-    if (sc >= 0) {
-      if (sp < 0) out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
-      out.push_back(cur);
-    } else if (sp > 0) {
-      out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
-    }
-    sp = sc;
-  }
-  if (out.size() < 3) out.clear();
 }
 
 namespace bp = boost::polygon;
@@ -104,10 +84,10 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
       const auto& poly = M.polygons[size_t(j)];
       rel.resize(poly.size());
       for (size_t k = 0; k < poly.size(); ++k) rel[k] = poly[k] - x;
-      clip_plane(rel, F.f, a);
+      detail::clip_halfspace(rel, F.f, a);
       for (const Vec3& d : planes) {
         if (a.empty()) break;
-        clip_plane(a, d, b);
+        detail::clip_halfspace(a, d, b);
         std::swap(a, b);
       }
       pts.clear();

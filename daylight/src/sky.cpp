@@ -8,31 +8,12 @@
 #include <cstdlib>
 #include <vector>
 
+#include "clip.hpp"
+
 namespace lambert::daylight {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Sutherland-Hodgman: the part of `poly` (corners relative to x) with d . a >= 0.
-void clip(const std::vector<Vec3>& poly, const Vec3& d, std::vector<Vec3>& out) {
-  out.clear();
-  const size_t m = poly.size();
-  if (m == 0) return;
-  double sp = d.dot(poly[m - 1]);
-  for (size_t k = 0; k < m; ++k) {
-    const Vec3& prev = poly[(k + m - 1) % m];
-    const Vec3& cur = poly[k];
-    const double sc = d.dot(cur);
-    if (sc >= 0) {
-      if (sp < 0) out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
-      out.push_back(cur);
-    } else if (sp > 0) {
-      out.push_back(prev + (cur - prev) * (sp / (sp - sc)));
-    }
-    sp = sc;
-  }
-  if (out.size() < 3) out.clear();
-}
 
 // Signed integrals over the cone of the polygon (corners a_k relative to the apex), oriented so that the solid
 // angle of a counter-clockwise (seen from the apex) polygon is positive:
@@ -138,14 +119,14 @@ Moments polygon_moments(const Vec3& x, const Vec3& n, const Vec3& up, std::span<
   thread_local std::vector<Vec3> rel, front, part;
   rel.resize(polygon.size());
   for (size_t k = 0; k < polygon.size(); ++k) rel[k] = polygon[k] - x;
-  clip(rel, n, front);  // x's front hemisphere only
+  detail::clip_halfspace(rel, n, front);  // x's front hemisphere only
   if (front.size() < 3) return out;
   double c = 0, cu = 0;
-  clip(front, up, part);
+  detail::clip_halfspace(front, up, part);
   cone_moments(part, n, up, c, cu);
   out.cos_above = c;
   out.cos_up_above = cu;
-  clip(front, -up, part);
+  detail::clip_halfspace(front, -up, part);
   cone_moments(part, n, up, c, cu);
   out.cos_below = c;
   return out;
