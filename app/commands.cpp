@@ -436,9 +436,11 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
 
 std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* check) {
   std::string out = fmt::format(
-      "  pairs        {} ({} culled by orientation, {} proven unoccluded, {} ray-tested), rays {}\n"
+      "  pairs        {} ({} culled by orientation, {} proven unoccluded, {}{} ray-tested), rays {}\n"
       "  form factors {} rule, tolerance {:.1e} per entry; row sum min/mean/max {:.6f} / {:.6f} / {:.6f}\n",
-      s.pairs_total, s.pairs_orientation_culled, s.pairs_shaft_culled, s.pairs_ray_tested, s.rays_cast, s.rule,
+      s.pairs_total, s.pairs_orientation_culled, s.pairs_shaft_culled,
+      s.pairs_plane_hidden ? fmt::format("{} proven hidden by a wall or slab, ", s.pairs_plane_hidden) : "",
+      s.pairs_ray_tested, s.rays_cast, s.rule,
       s.tolerance, s.row_sum_min, s.row_sum_mean, s.row_sum_max);
   const long long exact = s.pairs_exact_clear + s.pairs_exact_hidden + s.pairs_exact_integrated;
   if (exact > 0) {

@@ -94,6 +94,20 @@ DenseMatrixOperator Assembler::run() {
       Eigen::AlignedBox3d box;
       for (const Vec3& v : g_.points) box.extend(v);
       scale_ = box.diagonal().norm();
+      plane_of_ = occluder_planes(g_, occ, scale_);
+      for (int p = 0; p < n; ++p) {
+        const int id = plane_of_[size_t(p)];
+        if (id < 0) continue;
+        if (id >= int(plane_members_.size())) plane_members_.resize(size_t(id) + 1);
+        plane_members_[size_t(id)].push_back(p);
+      }
+      pbox_lo_.assign(size_t(n), Vec3::Constant(INFINITY));
+      pbox_hi_.assign(size_t(n), Vec3::Constant(-INFINITY));
+      for (int p = 0; p < n; ++p)
+        for (const Vec3& v : g_.polygon(p)) {
+          pbox_lo_[size_t(p)] = pbox_lo_[size_t(p)].cwiseMin(v);
+          pbox_hi_[size_t(p)] = pbox_hi_[size_t(p)].cwiseMax(v);
+        }
       if (o_.visibility_method != VisibilityMethod::Rays) {
         merged_ = merge_coplanar_occluders(g_, occ, scale_);
         for (int m : merged_.of_patch) st_.occluders_merged += m >= 0;

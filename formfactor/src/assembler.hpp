@@ -13,6 +13,7 @@
 #include "prepared.hpp"
 #include "sampling.hpp"
 #include "exact_visibility.hpp"
+#include "separation.hpp"
 #include "shaft.hpp"
 
 namespace lambert::formfactor::detail {
@@ -42,6 +43,8 @@ struct Counters {
   long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0, reused = 0, fixed = 0;
   long long no_visible_sample = 0;
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
+  long long plane_hidden = 0, plane_tests = 0;  // pairs proven hidden by a separating plane; blocks and pairs tried
+  double plane_seconds = 0;
   double tile_seconds = 0, visibility_seconds = 0;  // thread time in tiles, and in their visibility step
   double exact_seconds = 0, rays_seconds = 0;       // thread time of the two visibility paths
   std::array<long long, kMethodCount> by_method{};
@@ -61,6 +64,10 @@ struct TileBuffers {
   std::vector<int> rest_j;
   SampleBuffers ray;
   ExactScratchPtr exact = make_exact_scratch();
+  SeparationScratchPtr sep = make_separation_scratch();
+  std::vector<Vec3> corners_a, corners_b;
+  std::vector<int> walls;  // planes that proved sub-tiles of the current tile hidden (tried first)
+  int searches = 0;        // full shaft searches for a proof in the current tile
   std::vector<int> cand, merged_ids;
   std::vector<Occluder> occ;
   int blocker = -1;  // the occluder that blocked the last shaft tested (OccluderTree::may_block's cache)
@@ -88,6 +95,9 @@ class Assembler {
   std::vector<std::uint8_t> convex_;  // per patch: convex polygon (triangle or convex quad), for the exact path
   double scale_ = 0;                  // the scene's size (bounding-box diagonal)
   MergedOccluders merged_;            // coplanar touching occluders merged (exact path)
+  std::vector<int> plane_of_;         // per patch: its plane among the occluders (separation.hpp), or -1
+  std::vector<std::vector<int>> plane_members_;  // per plane: its occluders
+  std::vector<Vec3> pbox_lo_, pbox_hi_;          // per patch: bounding box
   OccluderTree tree_;
   bool occlusion_ = false;
   double tol_ = 0;         // the tolerance used (Options::tolerance or the automatic one)

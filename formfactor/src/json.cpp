@@ -18,6 +18,8 @@ void to_json(nlohmann::json& j, const Stats& s) {
   j["visibility_method"] = s.visibility_method;
   j["pairs_exact_clear"] = s.pairs_exact_clear;
   j["pairs_exact_hidden"] = s.pairs_exact_hidden;
+  j["pairs_plane_hidden"] = s.pairs_plane_hidden;
+  j["plane_tests"] = s.plane_tests;
   j["pairs_exact_integrated"] = s.pairs_exact_integrated;
   j["pairs_exact_over_tolerance"] = s.pairs_exact_over_tolerance;
   j["exact_points"] = s.exact_points;

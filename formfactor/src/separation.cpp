@@ -4,15 +4,18 @@
 #include <polyclipping/clipper.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 
 namespace lambert::formfactor::detail {
 
 struct SeparationScratch {
   std::vector<double> da, db;
-  std::vector<char> used;
+  std::vector<std::pair<int, int>> order;  // (plane id, patch)
   std::vector<int> group;
-  std::vector<Eigen::Vector2d> pts, hull, poly, tmp;
+  std::vector<Eigen::Vector2d> pts, hull, poly, tmp, rel;
+  std::vector<char> held;
   ClipperLib::Clipper clipper;
   ClipperLib::Paths occ, result;
   ClipperLib::Path hull_path;
@@ -68,20 +71,81 @@ void clip_square(std::vector<V2>& poly, double r, std::vector<V2>& tmp) {
     }
 }
 
+// Whether q lies inside the polygon or within tol of its boundary (crossing number; tol in its units).
+bool inside_or_near(const std::vector<V2>& poly, const V2& q, double tol) {
+  bool in = false;
+  const size_t m = poly.size();
+  for (size_t k = 0, l = m - 1; k < m; l = k++) {
+    const V2 &a = poly[l], &b = poly[k];
+    const V2 e = b - a;
+    const double len2 = e.squaredNorm();
+    const double t = len2 > 0 ? std::clamp((q - a).dot(e) / len2, 0.0, 1.0) : 0.0;
+    if ((a + t * e - q).squaredNorm() <= tol * tol) return true;
+    if ((a.y() > q.y()) != (b.y() > q.y()) && q.x() < a.x() + (q.y() - a.y()) / (b.y() - a.y()) * e.x()) in = !in;
+  }
+  return in;
+}
+
+// Whether the convex polygon (either orientation) holds every point of `pts` (within tol of its edges); false
+// if the polygon is not convex.
+bool convex_holds(const std::vector<V2>& poly, const std::vector<V2>& pts, double tol) {
+  const size_t m = poly.size();
+  double sign = 0;
+  for (size_t k = 0; k < m; ++k) {
+    const double c = cross(poly[k], poly[(k + 1) % m], poly[(k + 2) % m]);
+    if (c == 0) continue;
+    if (sign == 0) sign = c > 0 ? 1 : -1;
+    else if ((c > 0 ? 1 : -1) != sign) return false;
+  }
+  if (sign == 0) return false;
+  for (size_t k = 0; k < m; ++k) {
+    const V2 &a = poly[k], &b = poly[(k + 1) % m];
+    const double len = (b - a).norm();
+    for (const V2& q : pts)
+      if (sign * cross(a, b, q) < -tol * len) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
-bool hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh::PatchGeometry& g,
-                     std::span<const int> candidates, double eps, SeparationScratch& S) {
-  if (a.empty() || b.empty() || candidates.empty()) return false;
-  S.used.assign(candidates.size(), 0);
+std::vector<int> occluder_planes(const mesh::PatchGeometry& g, std::span<const int> occluders, double scale) {
+  std::vector<int> id(size_t(g.size()), -1);
+  if (!(scale > 0)) return id;
+  // Unoriented plane, quantised (normal to 1e-9, offset to 1e-9 of the scene): a rounding boundary can only
+  // split a plane's group (a proof then fails: conservative), never join different planes.
+  std::map<std::array<long long, 4>, int> planes;
+  for (int p : occluders) {
+    Vec3 n = g.normal[size_t(p)];
+    if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;
+    const double d = n.dot(g.centroid[size_t(p)]);
+    const std::array<long long, 4> key{std::llround(n.x() * 1e9), std::llround(n.y() * 1e9),
+                                       std::llround(n.z() * 1e9), std::llround(d / (1e-9 * scale))};
+    id[size_t(p)] = planes.try_emplace(key, int(planes.size())).first->second;
+  }
+  return id;
+}
+
+int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh::PatchGeometry& g,
+                    std::span<const int> plane_of, std::span<const int> candidates, double eps,
+                    SeparationScratch& S) {
+  if (a.empty() || b.empty() || candidates.empty()) return -1;
+  // Candidates grouped by plane (sorted by plane id, then patch: deterministic).
+  S.order.clear();
+  for (int c : candidates)
+    if (plane_of[size_t(c)] >= 0) S.order.emplace_back(plane_of[size_t(c)], c);
+  std::sort(S.order.begin(), S.order.end());
   S.da.resize(a.size());
   S.db.resize(b.size());
-  for (size_t c = 0; c < candidates.size(); ++c) {
-    if (S.used[c]) continue;
-    const int p = candidates[c];
+  for (size_t r0 = 0, r1 = 0; r0 < S.order.size(); r0 = r1) {
+    r1 = r0;
+    while (r1 < S.order.size() && S.order[r1].first == S.order[r0].first) ++r1;
+    const int p = S.order[r0].second;
     const Vec3 n = g.normal[size_t(p)];
     const double o = n.dot(g.centroid[size_t(p)]);
-    // A on the side n.x <= o, B on n.x >= o (or the mirror), each within eps of touching the plane.
+    // A strictly on the side n.x < o, B strictly on n.x > o (or the mirror). A point in the plane would cross it
+    // where it starts: on its own patch, or on a coplanar one that does not block it (the back of a two-sided
+    // face), so regions touching the plane are not decided here.
     double amin = INFINITY, amax = -INFINITY, bmin = INFINITY, bmax = -INFINITY;
     for (size_t k = 0; k < a.size(); ++k) {
       S.da[k] = n.dot(a[k]) - o;
@@ -93,40 +157,47 @@ bool hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mes
       bmin = std::min(bmin, S.db[k]);
       bmax = std::max(bmax, S.db[k]);
     }
-    const bool ab = amax <= eps && bmin >= -eps, ba = bmax <= eps && amin >= -eps;
+    const bool ab = amax < -eps && bmin > eps, ba = bmax < -eps && amin > eps;
     if (!ab && !ba) continue;
-    // The plane's occluders: every candidate lying in it (both sides of a two-sided face, the tiles of a wall).
+    // The plane's occluders among the candidates (both sides of a two-sided face, the tiles of a wall); those
+    // outside the shaft cannot cover the crossings, which lie inside it.
     S.group.clear();
     double occluder_area = 0;
-    for (size_t q = c; q < candidates.size(); ++q) {
-      if (S.used[q]) continue;
-      const int id = candidates[q];
-      if (std::abs(g.normal[size_t(id)].dot(n)) < 1 - 1e-9) continue;
-      bool in_plane = true;
-      for (const Vec3& v : g.polygon(id)) in_plane = in_plane && std::abs(n.dot(v) - o) <= eps;
-      if (!in_plane) continue;
-      S.used[q] = 1;
-      S.group.push_back(id);
-      occluder_area += g.area[size_t(id)];
+    for (size_t q = r0; q < r1; ++q) {
+      S.group.push_back(S.order[q].second);
+      occluder_area += g.area[size_t(S.order[q].second)];
+    }
+    // A necessary condition first (most separating planes fail it): the segment between the two regions'
+    // centroids crosses the plane inside one of its occluders.
+    {
+      Vec3 ca = Vec3::Zero(), cb = Vec3::Zero();
+      double dca = 0, dcb = 0;
+      for (size_t k = 0; k < a.size(); ++k) ca += a[k], dca += S.da[k];
+      for (size_t k = 0; k < b.size(); ++k) cb += b[k], dcb += S.db[k];
+      ca /= double(a.size()), cb /= double(b.size()), dca /= double(a.size()), dcb /= double(b.size());
+      const Vec3 x = ca + (dca / (dca - dcb)) * (cb - ca);
+      const Vec3 e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+      const V2 q(e1.dot(x), e2.dot(x));
+      const double tol = 1e-9 * ((cb - ca).norm() + 1e-300);
+      bool held = false;
+      for (size_t k = 0; k < S.group.size() && !held; ++k) {
+        S.poly.clear();
+        for (const Vec3& v : g.polygon(S.group[k])) S.poly.emplace_back(e1.dot(v), e2.dot(v));
+        held = inside_or_near(S.poly, q, tol);
+      }
+      if (!held) continue;
     }
     // The crossings of the segments between the given points. A segment with both ends in the plane runs
     // along it: not decided here.
     const Vec3 e1 = n.unitOrthogonal(), e2 = n.cross(e1);
     const Vec3 origin = g.centroid[size_t(p)] - n * (n.dot(g.centroid[size_t(p)]) - o);
     S.pts.clear();
-    bool along = false;
-    for (size_t i = 0; i < a.size() && !along; ++i)
+    for (size_t i = 0; i < a.size(); ++i)
       for (size_t j = 0; j < b.size(); ++j) {
-        const double di = S.da[i], dj = S.db[j];
-        if (std::abs(di) <= eps && std::abs(dj) <= eps) {
-          along = true;
-          break;
-        }
-        const double t = std::clamp(di / (di - dj), 0.0, 1.0);
-        const Vec3 x = a[i] + t * (b[j] - a[i]) - origin;
+        const double di = S.da[i], dj = S.db[j];  // opposite signs, each beyond eps
+        const Vec3 x = a[i] + (di / (di - dj)) * (b[j] - a[i]) - origin;
         S.pts.emplace_back(e1.dot(x), e2.dot(x));
       }
-    if (along) continue;
     convex_hull(S.pts, S.hull);
     double hull_area = 0;
     for (size_t k = 0; k < S.hull.size(); ++k) hull_area += cross(V2::Zero(), S.hull[k], S.hull[(k + 1) % S.hull.size()]);
@@ -149,6 +220,25 @@ bool hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mes
     };
     S.hull_path.clear();
     for (const V2& v : S.hull) S.hull_path.push_back(snap(v));
+    // Quick answers before the Boolean operation: one convex occluder holding the whole hull covers it; a hull
+    // corner that no occluder holds is uncovered. Both within 1e-9 of the hull's size (the snap's order).
+    const double tol = 1e-9 * half;
+    S.rel.clear();
+    for (const V2& v : S.hull) S.rel.push_back(v - mid);
+    S.held.assign(S.rel.size(), 0);
+    bool one_holds = false;
+    for (int id : S.group) {
+      S.poly.clear();
+      for (const Vec3& v : g.polygon(id)) S.poly.emplace_back(e1.dot(v - origin) - mid.x(), e2.dot(v - origin) - mid.y());
+      if (convex_holds(S.poly, S.rel, tol)) {
+        one_holds = true;
+        break;
+      }
+      for (size_t k = 0; k < S.rel.size(); ++k)
+        if (!S.held[k]) S.held[k] = inside_or_near(S.poly, S.rel[k], tol);
+    }
+    if (one_holds) return S.order[r0].first;
+    if (std::find(S.held.begin(), S.held.end(), 0) != S.held.end()) continue;
     S.occ.clear();
     for (int id : S.group) {
       S.poly.clear();
@@ -177,9 +267,9 @@ bool hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mes
       }
       if (2 * std::abs(ClipperLib::Area(r)) > 2.0 * per + 4.0) covered = false;
     }
-    if (covered) return true;
+    if (covered) return S.order[r0].first;
   }
-  return false;
+  return -1;
 }
 
 }  // namespace lambert::formfactor::detail

@@ -15,7 +15,7 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
   st_.row_visibility_sigma.assign(n, 0.0);
   std::array<long long, kMethodCount> by{};
   long long fixed = 0;
-  double tile_seconds = 0, visibility_seconds = 0, exact_seconds = 0, rays_seconds = 0;
+  double tile_seconds = 0, visibility_seconds = 0, exact_seconds = 0, rays_seconds = 0, plane_seconds = 0;
   for (const Counters* cp : counters) {
     const Counters& c = *cp;
     tile_seconds += c.tile_seconds;
@@ -24,6 +24,9 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
     rays_seconds += c.rays_seconds;
     st_.pairs_exact_clear += c.exact_clear;
     st_.pairs_exact_hidden += c.exact_hidden;
+    st_.pairs_plane_hidden += c.plane_hidden;
+    st_.plane_tests += c.plane_tests;
+    plane_seconds += c.plane_seconds;
     st_.pairs_exact_integrated += c.exact_integrated;
     st_.exact_points += c.exact_points;
     st_.pairs_exact_over_tolerance += c.exact_over;
@@ -68,6 +71,7 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
   st_.seconds["visibility"] = per_thread_second * visibility_seconds;
   st_.seconds["visibility_exact"] = per_thread_second * exact_seconds;
   st_.seconds["visibility_rays"] = per_thread_second * rays_seconds;
+  st_.seconds["visibility_plane"] = per_thread_second * plane_seconds;
 }
 
 void Assembler::check_reciprocity(const std::vector<Counters*>& counters) {

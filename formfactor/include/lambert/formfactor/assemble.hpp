@@ -125,6 +125,9 @@ struct Stats {
   // occluder, integrated by the adaptive outer rule (its point evaluations, pairs stopped above tolerance).
   long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;
   long long exact_points = 0, pairs_exact_over_tolerance = 0;
+  // Pairs proven hidden by a separating plane (a wall or slab of occluders covering every segment between them,
+  // both paths: whole 8 x 8 sub-tiles, and single pairs on the exact path), and the proofs tried.
+  long long pairs_plane_hidden = 0, plane_tests = 0;
   // Exact path: occluder patches merged with coplanar touching neighbours (a meshed wall or block face) into
   // this many polygons, one per connected region of their union.
   int occluders_merged = 0, occluder_regions = 0;
