@@ -96,6 +96,30 @@ TEST(SeparatingPlane, RegionsTouchingThePlaneAreNotProven) {
   EXPECT_TRUE(hidden(wall, below, square(0.5, 0.5, 1, 2))) << "1e-6 m below the plane: strictly separated";
 }
 
+// With the caller's word that none of its patches lying in the plane faces the other region, a touching region
+// is decided: the box's top face is one of the wall's own tiles facing down (away from B): hidden. The same face
+// turned up (towards B) is a surface B sees: the caller refuses, nothing is proven.
+TEST(SeparatingPlane, TouchingRegionIsDecidedWhenItsInPlanePatchesFaceAway) {
+  std::vector<int> ids;
+  for (bool faces_b : {false, true}) {
+    Wall wall{1.0};
+    const mesh::PatchGeometry g = wall.geometry(ids);
+    std::vector<Vec3> box = square(0, 0, 1, 0);
+    for (const Vec3& v : square(0, 0, 1, 1)) box.push_back(v);
+    // The region's own patch in the plane: the tile [0, 1)^2, facing -z (wall.geometry: front = +z, so flip).
+    const Vec3 own_normal = faces_b ? Vec3(0, 0, 1) : Vec3(0, 0, -1);
+    const fd::TouchingCheck ok = [&](const Vec3& n, double o) {
+      // n points from the box (below) to B (above): the box's in-plane patch must not face +n.
+      mesh::PatchGeometry own = mesh::PatchGeometry::from_polygons({rect(2, 1.0, 0, 1, 0, 1, own_normal.z() > 0)});
+      return !fd::lies_in_plane_facing(own, 0, n, o, 1e-9);
+    };
+    auto scratch = fd::make_separation_scratch();
+    const int proof = fd::hidden_by_plane(box, square(0.5, 0.5, 1, 2), g, fd::occluder_planes(g, ids, 10), ids, 1e-9,
+                                          *scratch, ok);
+    EXPECT_EQ(proof >= 0, !faces_b) << (faces_b ? "in-plane patch facing B" : "in-plane patch facing away");
+  }
+}
+
 // Two wall panels meeting inside the bundle: touching, they hide (shared edges snap together); a crack of
 // 1e-6 m (2,000 snapping units here) lets light through and must not be closed by the sliver allowance.
 TEST(SeparatingPlane, CrackBetweenPanelsIsNotClosed) {

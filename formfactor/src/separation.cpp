@@ -109,6 +109,13 @@ bool convex_holds(const std::vector<V2>& poly, const std::vector<V2>& pts, doubl
 
 }  // namespace
 
+bool lies_in_plane_facing(const mesh::PatchGeometry& g, int p, const Vec3& n, double o, double eps) {
+  if (!(g.normal[size_t(p)].dot(n) > 0)) return false;
+  for (const Vec3& v : g.polygon(p))
+    if (std::abs(n.dot(v) - o) > eps) return false;
+  return true;
+}
+
 std::vector<int> occluder_planes(const mesh::PatchGeometry& g, std::span<const int> occluders, double scale) {
   std::vector<int> id(size_t(g.size()), -1);
   if (!(scale > 0)) return id;
@@ -128,7 +135,7 @@ std::vector<int> occluder_planes(const mesh::PatchGeometry& g, std::span<const i
 
 int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh::PatchGeometry& g,
                     std::span<const int> plane_of, std::span<const int> candidates, double eps,
-                    SeparationScratch& S) {
+                    SeparationScratch& S, const TouchingCheck& touching_ok) {
   if (a.empty() || b.empty() || candidates.empty()) return -1;
   // Candidates grouped by plane (sorted by plane id, then patch: deterministic).
   S.order.clear();
@@ -145,7 +152,7 @@ int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh
     const double o = n.dot(g.centroid[size_t(p)]);
     // A strictly on the side n.x < o, B strictly on n.x > o (or the mirror). A point in the plane would cross it
     // where it starts: on its own patch, or on a coplanar one that does not block it (the back of a two-sided
-    // face), so regions touching the plane are not decided here.
+    // face), so a region touching the plane needs the caller's word (touching_ok).
     double amin = INFINITY, amax = -INFINITY, bmin = INFINITY, bmax = -INFINITY;
     for (size_t k = 0; k < a.size(); ++k) {
       S.da[k] = n.dot(a[k]) - o;
@@ -157,7 +164,16 @@ int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh
       bmin = std::min(bmin, S.db[k]);
       bmax = std::max(bmax, S.db[k]);
     }
-    const bool ab = amax < -eps && bmin > eps, ba = bmax < -eps && amin > eps;
+    bool ab = amax < -eps && bmin > eps, ba = bmax < -eps && amin > eps;
+    // One region touching the plane (the other strictly off it), if the caller vouches for its patches there.
+    bool touching = false;
+    if (!ab && !ba && touching_ok) {
+      ab = (amax <= eps && bmin > eps) || (amax < -eps && bmin >= -eps);
+      ba = (bmax <= eps && amin > eps) || (bmax < -eps && amin >= -eps);
+      touching = ab || ba;
+    }
+    // Accepted proof: for a touching region, its patches lying in the plane must not face the other region.
+    auto accept = [&] { return !touching || touching_ok(ab ? n : Vec3(-n), ab ? o : -o); };
     if (!ab && !ba) continue;
     // The plane's occluders among the candidates (both sides of a two-sided face, the tiles of a wall); those
     // outside the shaft cannot cover the crossings, which lie inside it.
@@ -194,8 +210,8 @@ int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh
     S.pts.clear();
     for (size_t i = 0; i < a.size(); ++i)
       for (size_t j = 0; j < b.size(); ++j) {
-        const double di = S.da[i], dj = S.db[j];  // opposite signs, each beyond eps
-        const Vec3 x = a[i] + (di / (di - dj)) * (b[j] - a[i]) - origin;
+        const double di = S.da[i], dj = S.db[j];  // opposite signs, at least one beyond eps
+        const Vec3 x = a[i] + std::clamp(di / (di - dj), 0.0, 1.0) * (b[j] - a[i]) - origin;
         S.pts.emplace_back(e1.dot(x), e2.dot(x));
       }
     convex_hull(S.pts, S.hull);
@@ -237,7 +253,8 @@ int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh
       for (size_t k = 0; k < S.rel.size(); ++k)
         if (!S.held[k]) S.held[k] = inside_or_near(S.poly, S.rel[k], tol);
     }
-    if (one_holds) return S.order[r0].first;
+    if (one_holds && accept()) return S.order[r0].first;
+    if (one_holds) continue;
     if (std::find(S.held.begin(), S.held.end(), 0) != S.held.end()) continue;
     S.occ.clear();
     for (int id : S.group) {
@@ -267,7 +284,7 @@ int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh
       }
       if (2 * std::abs(ClipperLib::Area(r)) > 2.0 * per + 4.0) covered = false;
     }
-    if (covered) return S.order[r0].first;
+    if (covered && accept()) return S.order[r0].first;
   }
   return -1;
 }

@@ -289,13 +289,23 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
       // same proofs for any thread count.
       Box shaft_box = ba;
       shaft_box.add(bc);
+      const double eps = 1e-9 * scale_;
+      // Blocks touching the plane (a wall's own patches, floors meeting it): none of their patches lying in it
+      // may face the other block.
+      const TouchingCheck touching_ok = [&](const Vec3& nn, double oo) {
+        for (int p = a0; p < a1; ++p)
+          if (lies_in_plane_facing(g_, p, nn, oo, eps)) return false;
+        for (int p = c0; p < c1; ++p)
+          if (lies_in_plane_facing(g_, p, -nn, -oo, eps)) return false;
+        return true;
+      };
       auto try_plane = [&](int plane) {
         b.cand.clear();
         for (int p : plane_members_[size_t(plane)])
           if ((pbox_lo_[size_t(p)].array() <= shaft_box.hi.array()).all() &&
               (pbox_hi_[size_t(p)].array() >= shaft_box.lo.array()).all())
             b.cand.push_back(p);
-        return hidden_by_plane(b.corners_a, b.corners_b, g_, plane_of_, b.cand, 1e-9 * scale_, *b.sep);
+        return hidden_by_plane(b.corners_a, b.corners_b, g_, plane_of_, b.cand, eps, *b.sep, touching_ok);
       };
       int proof = -1;
       for (size_t k = 0; k < b.walls.size() && proof < 0; ++k) proof = try_plane(b.walls[k]);
@@ -309,7 +319,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
         ts.oi = ts.oj = -INFINITY;
         b.cand.clear();
         tree_.collect(ts, -1, -1, b.cand);
-        proof = hidden_by_plane(b.corners_a, b.corners_b, g_, plane_of_, b.cand, 1e-9 * scale_, *b.sep);
+        proof = hidden_by_plane(b.corners_a, b.corners_b, g_, plane_of_, b.cand, eps, *b.sep, touching_ok);
       }
       if (proof >= 0 && std::find(b.walls.begin(), b.walls.end(), proof) == b.walls.end()) b.walls.push_back(proof);
       const bool hidden = proof >= 0;
@@ -382,7 +392,11 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                   for (int m : b.merged_ids) b.occ.push_back({merged_.polys[size_t(m)], merged_.convex[size_t(m)] != 0});
                   // A wall or slab of several occluders hiding the pair entirely: proven without integrating.
                   ++c.plane_tests;
-                  if (hidden_by_plane(g_.polygon(i), g_.polygon(j), g_, plane_of_, b.cand, 1e-9 * scale_, *b.sep) >= 0) {
+                  const double eps = 1e-9 * scale_;
+                  const TouchingCheck touching_ok = [&](const Vec3& nn, double oo) {
+                    return !lies_in_plane_facing(g_, i, nn, oo, eps) && !lies_in_plane_facing(g_, j, -nn, -oo, eps);
+                  };
+                  if (hidden_by_plane(g_.polygon(i), g_.polygon(j), g_, plane_of_, b.cand, eps, *b.sep, touching_ok) >= 0) {
                     ++c.exact_hidden;
                     ++c.plane_hidden;
                     F(i, j) = 0;
