@@ -8,6 +8,8 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
+#include <map>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -48,6 +50,21 @@ class FirstHit {
     rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
     detail::add_patch_triangles(device_, scene_, g, {}, centre_, tri_patch_);
     rtcCommitScene(scene_);
+    // Coincident patches facing opposite ways (the two sides of a two-sided face: the same corners in reverse
+    // order): a ray meets both at the same distance and Embree may report either; the side facing the ray is
+    // the one hit.
+    twin_.assign(size_t(g.size()), -1);
+    std::map<std::vector<std::array<double, 3>>, std::vector<int>> by_corners;
+    for (int p = 0; p < g.size(); ++p) {
+      std::vector<std::array<double, 3>> key;
+      for (const Vec3& v : g.polygon(p)) key.push_back({v.x(), v.y(), v.z()});
+      std::sort(key.begin(), key.end());
+      by_corners[key].push_back(p);
+    }
+    for (const auto& [key, ps] : by_corners)
+      for (int a : ps)
+        for (int b : ps)
+          if (a != b && g.normal[a].dot(g.normal[b]) < 0 && twin_[size_t(a)] < 0) twin_[size_t(a)] = b;
   }
   ~FirstHit() {
     rtcReleaseScene(scene_);
@@ -79,13 +96,16 @@ class FirstHit {
     rtcIntersect1(scene_, &c.ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
     const int p = tri_patch_[rh.hit.primID];
-    return g.normal[p].dot(d) < 0 ? p : -1;
+    if (g.normal[p].dot(d) < 0) return p;
+    const int t = twin_[size_t(p)];
+    return t >= 0 && t != self && g.normal[t].dot(d) < 0 ? t : -1;
   }
 
  private:
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
   std::vector<int> tri_patch_;
+  std::vector<int> twin_;  // per patch: the coincident patch facing the other way, or -1
   Vec3 centre_;
   double size_ = 1;
 };
