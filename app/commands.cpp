@@ -139,7 +139,13 @@ OperatorChoice choose_operator(const CommonOptions& o, int n, double rho_max) {
   const std::size_t hier = formfactor::estimate_hierarchy_bytes(std::size_t(n), o.hierarchy.tolerance);
   const std::string avail = fmt::format("{} available ({})", megabytes(mem.bytes), mem.source);
   const bool fixed_rule = o.ff_rule != "adaptive";
+  // Exact visibility is computed by the dense assembly only: the hierarchy's links and leaf pairs take rays.
+  const bool exact_visibility = !o.no_visibility && o.visibility != "rays";
   if (o.op == "hierarchical") {
+    if (exact_visibility)
+      throw InputError("--operator hierarchical: --visibility " + o.visibility +
+                       " is computed by the dense assembly only (the hierarchy's links use rays); use --operator "
+                       "dense or --visibility rays");
     if (o.adaptive_budget > 0)
       throw InputError("--operator hierarchical: adaptive refinement (--adaptive-budget) reuses dense matrices between "
                        "rounds; use --operator dense or auto");
@@ -159,15 +165,15 @@ OperatorChoice choose_operator(const CommonOptions& o, int n, double rho_max) {
                                    n, megabytes(dense), n, avail, megabytes(hier)));
     return {false, fmt::format("requested; {} of {}", megabytes(dense), avail)};
   }
-  if (o.adaptive_budget > 0 || fixed_rule) {
+  if (o.adaptive_budget > 0 || fixed_rule || exact_visibility) {
+    const std::string why = fixed_rule        ? "the fixed rule '" + o.ff_rule + "'"
+                            : exact_visibility ? "--visibility " + o.visibility
+                                               : std::string("adaptive refinement (--adaptive-budget)");
     if (dense > mem.bytes)
       throw InputError(fmt::format("the dense matrix for {} patches needs {}, more than the {}, and {} needs the dense "
                                    "operator; use fewer patches (a larger --max-edge)",
-                                   n, megabytes(dense), avail,
-                                   fixed_rule ? "the fixed rule '" + o.ff_rule + "'" : std::string("--adaptive-budget")));
-    return {false, fmt::format("auto: {} needs the dense operator; {} of {}",
-                               fixed_rule ? "the fixed rule '" + o.ff_rule + "'" : std::string("adaptive refinement"),
-                               megabytes(dense), avail)};
+                                   n, megabytes(dense), avail, why));
+    return {false, fmt::format("auto: {} needs the dense operator; {} of {}", why, megabytes(dense), avail)};
   }
   // Bright interiors: the hierarchy refines to tolerance (1 - rho)/rho and loses its advantage; dense if it fits.
   if (rho_max > 0.95 && dense <= mem.bytes / 2)

@@ -284,6 +284,14 @@ TEST_F(HierarchyCli, OperatorChoicePrintedAndUnsupportedCombinationsRefused) {
   EXPECT_NE(c.output.find("does not store"), std::string::npos) << c.output;
   const auto d = test::run("solve " + scene + " -o " + path("d.vtu") + " --operator sparse");
   EXPECT_EQ(d.status, 1) << d.output;
+  // Exact visibility is the dense assembly's: refused with the hierarchy (it was silently ray-traced), and auto
+  // says why it picks dense.
+  const auto f = test::run("solve " + scene + " -o " + path("f.vtu") + " --operator hierarchical --visibility exact");
+  EXPECT_EQ(f.status, 1) << f.output;
+  EXPECT_NE(f.output.find("dense assembly only"), std::string::npos) << f.output;
+  const auto g = test::run("formfactors " + scene + " -o " + path("g.csv") + " --visibility auto --rays 4");
+  EXPECT_EQ(g.status, 0) << g.output;
+  EXPECT_NE(g.output.find("--visibility auto needs the dense operator"), std::string::npos) << g.output;
   // Too many patches for the memory available: refused before refining, with the patch count that fits.
   for (const char* op : {"dense", "hierarchical"}) {
     const auto e = test::run("solve " + scene + " -o " + path("e.vtu") + " --max-edge 0.0003 --operator " + op);
