@@ -65,22 +65,6 @@ void clip_keep(const std::vector<Vec3>& in, const Vec3& m, double c, std::vector
   if (out.size() < 3) out.clear();
 }
 
-// Signed Lambert contour sum (no absolute value, no 1/2pi): sum_k theta_k n.c_k/|c_k|.
-double signed_contour(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
-  const size_t m = poly.size();
-  double sum = 0;
-  Vec3 a = poly[0] - x;
-  for (size_t k = 0; k < m; ++k) {
-    const Vec3& v1 = poly[(k + 1) % m];
-    const Vec3 b = v1 - x;
-    const Vec3 c = a.cross(v1 - poly[k]);
-    const double cn = c.norm();
-    if (cn > 0) sum += std::atan2(cn, a.dot(b)) * (n.dot(c) / cn);
-    a = b;
-  }
-  return sum;
-}
-
 Vec3 average(std::span<const Vec3> poly) {
   Vec3 c = Vec3::Zero();
   for (const Vec3& v : poly) c += v;
@@ -174,9 +158,9 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
     ++count;
   }
   if (count == 0) return 0;
-  if (count == 1 && target_convex) return std::abs(signed_contour(x, n, S.surv[0])) / (2 * kPi);
+  if (count == 1 && target_convex) return contour_sum(x, n, S.surv[0]);
   for (size_t k = 0; k < count; ++k)
-    if (S.surv_convex[k] && covers(x, target, S.surv[k])) return std::abs(signed_contour(x, n, target)) / (2 * kPi);
+    if (S.surv_convex[k] && covers(x, target, S.surv[k])) return contour_sum(x, n, target);
   // Union of the projections on the target's plane (integer coordinates, kSnap per R), intersected with the
   // target when the cone was only its bounding rectangle.
   const double scale = kSnap / R, inv = R / kSnap;
@@ -210,7 +194,7 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
     if (path.size() < 3) continue;
     S.lifted.clear();
     for (const auto& ip : path) S.lifted.push_back(tc + (double(ip.X) * inv) * u + (double(ip.Y) * inv) * v);
-    total += signed_contour(x, n, S.lifted);
+    total += signed_contour_sum(x, n, S.lifted);
   }
   return std::abs(total) / (2 * kPi);
 }

@@ -21,6 +21,9 @@ void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double
 
 // (1/2pi)|sum_k theta_k n.c_k/|c_k||: the point-to-polygon form factor with no culling or clipping; the caller
 // guarantees that the polygon lies in x's closed front half-space and x is in front of it.
+// Signed Lambert contour sum sum_k theta_k n.c_k/|c_k| (no absolute value, no 1/2pi): additive over oriented
+// contours, so holes with reversed orientation subtract (exact visibility's unions).
+double signed_contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly);
 double contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly);
 
 // A_i F_ij (m^2) by the double line integral (1/2pi) sum_ab (u_a.v_b) int int ln r ds dt, adaptive

@@ -32,7 +32,7 @@ void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double
   if (out.size() < 3) out.clear();
 }
 
-double contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
+double signed_contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
   const size_t m = poly.size();
   double sum = 0;
   Vec3 a = poly[0] - x;
@@ -45,7 +45,11 @@ double contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
     if (cn > 0) sum += std::atan2(cn, a.dot(b)) * (n.dot(c) / cn);  // |c| = 0: x on the edge's line or a zero-length edge
     a = b;
   }
-  return std::abs(sum) / (2 * kPi);
+  return sum;
+}
+
+double contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
+  return std::abs(signed_contour_sum(x, n, poly)) / (2 * kPi);
 }
 
 std::array<double, 2> plane_range(std::span<const Vec3> poly, const Vec3& n, double offset) {

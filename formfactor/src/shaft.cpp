@@ -117,9 +117,11 @@ bool OccluderTree::item_may_block(const Shaft& s, int p) const {
   return !(behind_i || behind_j);
 }
 
-bool OccluderTree::may_block(const Shaft& s, int ia, int ib, int* hint) const {
+// Visits, in tree order (left subtree first), every occluder other than ia and ib that may meet the shaft,
+// until `visit` returns true; returns whether it did.
+template <class Visit>
+bool OccluderTree::traverse(const Shaft& s, int ia, int ib, Visit&& visit) const {
   if (nodes_.empty()) return false;
-  if (hint && *hint >= 0 && *hint != ia && *hint != ib && item_may_block(s, *hint)) return true;
   int stack[64];
   int top = 0;
   stack[top++] = 0;
@@ -127,38 +129,31 @@ bool OccluderTree::may_block(const Shaft& s, int ia, int ib, int* hint) const {
     const Node& nd = nodes_[stack[--top]];
     if (box_outside(s, nd.box)) continue;
     if (nd.left >= 0) {
-      stack[top++] = nd.left;
       stack[top++] = nd.right;
+      stack[top++] = nd.left;
       continue;
     }
     for (int k = nd.begin; k < nd.end; ++k) {
       const int p = items_[k];
-      if (p == ia || p == ib || !item_may_block(s, p)) continue;
-      if (hint) *hint = p;
-      return true;
+      if (p != ia && p != ib && item_may_block(s, p) && visit(p)) return true;
     }
   }
   return false;
 }
 
+bool OccluderTree::may_block(const Shaft& s, int ia, int ib, int* hint) const {
+  if (hint && *hint >= 0 && *hint != ia && *hint != ib && item_may_block(s, *hint)) return true;
+  return traverse(s, ia, ib, [&](int p) {
+    if (hint) *hint = p;
+    return true;
+  });
+}
+
 void OccluderTree::collect(const Shaft& s, int ia, int ib, std::vector<int>& out) const {
-  if (nodes_.empty()) return;
-  int stack[64];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const Node& nd = nodes_[stack[--top]];
-    if (box_outside(s, nd.box)) continue;
-    if (nd.left >= 0) {
-      stack[top++] = nd.right;
-      stack[top++] = nd.left;
-      continue;
-    }
-    for (int k = nd.begin; k < nd.end; ++k) {
-      const int p = items_[k];
-      if (p != ia && p != ib && item_may_block(s, p)) out.push_back(p);
-    }
-  }
+  traverse(s, ia, ib, [&](int p) {
+    out.push_back(p);
+    return false;
+  });
 }
 
 }  // namespace lambert::formfactor::detail

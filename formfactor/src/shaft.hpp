@@ -53,6 +53,8 @@ class OccluderTree {
     int left = -1, right = -1, begin = 0, end = 0;  // leaf if left < 0: items [begin, end)
   };
   int build(int begin, int end);
+  template <class Visit>
+  bool traverse(const Shaft& s, int ia, int ib, Visit&& visit) const;
   bool item_may_block(const Shaft& s, int p) const;
   const mesh::PatchGeometry* g_ = nullptr;
   std::vector<Node> nodes_;
