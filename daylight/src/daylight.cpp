@@ -10,8 +10,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
-#include <map>
-#include <tuple>
 
 #include "lambert/formfactor/kernel.hpp"
 #include "clip.hpp"
@@ -156,28 +154,27 @@ struct Gatherer::Impl {
   // Groups coplanar patches (either orientation) and unites each group in its plane (integer coordinates of
   // 2^-28 of the scene's size: edges move by at most ~1e-8 of it).
   void merge_planes(double diag) {
-    std::map<std::tuple<long long, long long, long long, long long>, int> key_group;
-    merged.patch_group.assign(size_t(g.size()), -1);
+    // Patches grouped by their unoriented plane (mesh::plane_ids); each group's normal (largest component
+    // positive) and a point of it.
+    std::vector<int> all(size_t(g.size()));
+    for (int p = 0; p < g.size(); ++p) all[size_t(p)] = p;
+    merged.patch_group = mesh::plane_ids(g, all, diag);
     std::vector<std::vector<int>> members;
     std::vector<Vec3> gn;
     std::vector<Vec3> go;
     for (int p = 0; p < g.size(); ++p) {
-      Vec3 nn = g.normal[p];
-      int big = 0;
-      for (int c = 1; c < 3; ++c)
-        if (std::abs(nn[c]) > std::abs(nn[big])) big = c;
-      if (nn[big] < 0) nn = -nn;
-      const double d = nn.dot(g.centroid[p]);
-      const auto key = std::make_tuple(std::llround(nn.x() * 1e9), std::llround(nn.y() * 1e9), std::llround(nn.z() * 1e9),
-                                       std::llround(d / (1e-9 * diag)));
-      auto [it, added] = key_group.emplace(key, int(members.size()));
-      if (added) {
-        members.emplace_back();
+      const int G = merged.patch_group[size_t(p)];
+      if (G >= int(members.size())) {
+        members.resize(size_t(G) + 1);
+        Vec3 nn = g.normal[p];
+        int big = 0;
+        for (int c = 1; c < 3; ++c)
+          if (std::abs(nn[c]) > std::abs(nn[big])) big = c;
+        if (nn[big] < 0) nn = -nn;
         gn.push_back(nn);
         go.push_back(g.centroid[p]);
       }
-      members[size_t(it->second)].push_back(p);
-      merged.patch_group[size_t(p)] = it->second;
+      members[size_t(G)].push_back(p);
     }
     merged.groups = int(members.size());
     const double scale = double(1 << 28) / diag;

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 #include <queue>
 
 #include "lambert/formfactor/kernel.hpp"
@@ -541,17 +540,15 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
   MergedOccluders out;
   out.of_patch.assign(size_t(g.size()), -1);
   if (!(scale > 0)) return out;
-  // Unoriented plane of each occluder, quantised (normal to 1e-9, offset to 1e-9 of the scene): a rounding
-  // boundary can only split a group, never join different planes.
-  std::map<std::array<long long, 4>, std::vector<int>> groups;
+  // Occluders grouped by their unoriented plane (mesh::plane_ids), groups in order of first appearance.
+  const std::vector<int> plane = mesh::plane_ids(g, occluders, scale);
+  std::vector<std::vector<int>> groups;
   for (int p : occluders) {
-    Vec3 n = g.normal[p];
-    if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;
-    const double d = n.dot(g.centroid[p]);
-    groups[{std::llround(n.x() * 1e9), std::llround(n.y() * 1e9), std::llround(n.z() * 1e9),
-            std::llround(d / (1e-9 * scale))}].push_back(p);
+    const int id = plane[size_t(p)];
+    if (id >= int(groups.size())) groups.resize(size_t(id) + 1);
+    groups[size_t(id)].push_back(p);
   }
-  for (const auto& [key, members] : groups) {
+  for (const std::vector<int>& members : groups) {
     if (members.size() < 2) continue;
     Vec3 n = g.normal[members[0]];
     if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;

@@ -68,7 +68,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
 // both sides of a two-sided face) block exactly what their union blocks: they are merged into one polygon per
 // connected region of the union (Clipper, in the plane's integer frame: corners move by <= 1e-9 of the region's
 // size), where the plane's union has no hole. Fewer, larger occluders: fewer clips per point, and a region that
-// hides a pair alone can prove it hidden. Deterministic (groups in sorted plane order).
+// hides a pair alone can prove it hidden. Deterministic (planes in order of first appearance, mesh::plane_ids).
 struct MergedOccluders {
   std::vector<std::vector<Vec3>> polys;
   std::vector<std::uint8_t> convex;

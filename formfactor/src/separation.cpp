@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 
 namespace lambert::formfactor::detail {
 
@@ -117,20 +116,7 @@ bool lies_in_plane_facing(const mesh::PatchGeometry& g, int p, const Vec3& n, do
 }
 
 std::vector<int> occluder_planes(const mesh::PatchGeometry& g, std::span<const int> occluders, double scale) {
-  std::vector<int> id(size_t(g.size()), -1);
-  if (!(scale > 0)) return id;
-  // Unoriented plane, quantised (normal to 1e-9, offset to 1e-9 of the scene): a rounding boundary can only
-  // split a plane's group (a proof then fails: conservative), never join different planes.
-  std::map<std::array<long long, 4>, int> planes;
-  for (int p : occluders) {
-    Vec3 n = g.normal[size_t(p)];
-    if (n.x() < 0 || (n.x() == 0 && (n.y() < 0 || (n.y() == 0 && n.z() < 0)))) n = -n;
-    const double d = n.dot(g.centroid[size_t(p)]);
-    const std::array<long long, 4> key{std::llround(n.x() * 1e9), std::llround(n.y() * 1e9),
-                                       std::llround(n.z() * 1e9), std::llround(d / (1e-9 * scale))};
-    id[size_t(p)] = planes.try_emplace(key, int(planes.size())).first->second;
-  }
-  return id;
+  return mesh::plane_ids(g, occluders, scale);
 }
 
 int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh::PatchGeometry& g,

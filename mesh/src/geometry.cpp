@@ -1,7 +1,9 @@
 #include "lambert/mesh/geometry.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 #include <string>
 
 #include "triangulate_internal.hpp"
@@ -15,6 +17,24 @@ Vec3 newell_normal(std::span<const Vec3> polygon) {
   const Vec3 o = m ? polygon[0] : Vec3::Zero();
   for (size_t k = 0; k < m; ++k) n += (polygon[k] - o).cross(polygon[(k + 1) % m] - o);
   return n;
+}
+
+std::vector<int> plane_ids(const PatchGeometry& g, std::span<const int> patches, double scale) {
+  std::vector<int> id(size_t(g.size()), -1);
+  if (!(scale > 0)) return id;
+  std::map<std::array<long long, 4>, int> planes;
+  for (int p : patches) {
+    Vec3 n = g.normal[size_t(p)];
+    int big = 0;
+    for (int c = 1; c < 3; ++c)
+      if (std::abs(n[c]) > std::abs(n[big])) big = c;
+    if (n[big] < 0) n = -n;
+    const double d = n.dot(g.centroid[size_t(p)]);
+    const std::array<long long, 4> key{std::llround(n.x() * 1e9), std::llround(n.y() * 1e9), std::llround(n.z() * 1e9),
+                                       std::llround(d / (1e-9 * scale))};
+    id[size_t(p)] = planes.try_emplace(key, int(planes.size())).first->second;
+  }
+  return id;
 }
 
 double planarity_deviation(std::span<const Vec3> polygon) {

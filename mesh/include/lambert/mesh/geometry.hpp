@@ -35,6 +35,12 @@ Vec3 newell_normal(std::span<const Vec3> polygon);
 // Largest distance (m) of a corner from the polygon's best plane (Newell normal through the centroid).
 double planarity_deviation(std::span<const Vec3> polygon);
 
+// Plane of each listed patch as an id (-1 for patches not listed): patches lying in one plane, facing either way,
+// share an id. The unoriented plane (normal with its largest component positive, offset) is quantised to 1e-9 in
+// the normal and 1e-9 * scale in the offset (scale: the scene's size, m): a rounding boundary can only split a
+// plane's group, never join different planes. Ids are dense, in order of first appearance in `patches`.
+std::vector<int> plane_ids(const PatchGeometry& g, std::span<const int> patches, double scale);
+
 // Ear-clipping triangulation of a simple polygon (planar or nearly so), projected on the plane
 // with the given normal. Returns corner-index triples in the polygon's winding order; empty if the
 // polygon is degenerate (self-intersecting or zero area).
