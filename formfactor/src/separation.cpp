@@ -169,30 +169,29 @@ int hidden_by_plane(std::span<const Vec3> a, std::span<const Vec3> b, const mesh
       S.group.push_back(S.order[q].second);
       occluder_area += g.area[size_t(S.order[q].second)];
     }
+    // The plane's 2D frame, centred on one of its occluders (coordinates stay small far from the origin).
+    const Vec3 e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+    const Vec3 origin = g.centroid[size_t(p)] - n * (n.dot(g.centroid[size_t(p)]) - o);
     // A necessary condition first (most separating planes fail it): the segment between the two regions'
-    // centroids crosses the plane inside one of its occluders.
+    // centroids crosses the plane inside one of its occluders (that crossing is one of those to be covered).
     {
       Vec3 ca = Vec3::Zero(), cb = Vec3::Zero();
       double dca = 0, dcb = 0;
-      for (size_t k = 0; k < a.size(); ++k) ca += a[k], dca += S.da[k];
-      for (size_t k = 0; k < b.size(); ++k) cb += b[k], dcb += S.db[k];
+      for (size_t k = 0; k < a.size(); ++k) ca += a[k] - origin, dca += S.da[k];
+      for (size_t k = 0; k < b.size(); ++k) cb += b[k] - origin, dcb += S.db[k];
       ca /= double(a.size()), cb /= double(b.size()), dca /= double(a.size()), dcb /= double(b.size());
       const Vec3 x = ca + (dca / (dca - dcb)) * (cb - ca);
-      const Vec3 e1 = n.unitOrthogonal(), e2 = n.cross(e1);
       const V2 q(e1.dot(x), e2.dot(x));
       const double tol = 1e-9 * ((cb - ca).norm() + 1e-300);
       bool held = false;
       for (size_t k = 0; k < S.group.size() && !held; ++k) {
         S.poly.clear();
-        for (const Vec3& v : g.polygon(S.group[k])) S.poly.emplace_back(e1.dot(v), e2.dot(v));
+        for (const Vec3& v : g.polygon(S.group[k])) S.poly.emplace_back(e1.dot(v - origin), e2.dot(v - origin));
         held = inside_or_near(S.poly, q, tol);
       }
       if (!held) continue;
     }
-    // The crossings of the segments between the given points. A segment with both ends in the plane runs
-    // along it: not decided here.
-    const Vec3 e1 = n.unitOrthogonal(), e2 = n.cross(e1);
-    const Vec3 origin = g.centroid[size_t(p)] - n * (n.dot(g.centroid[size_t(p)]) - o);
+    // The crossings of the segments between the given points (each has one end strictly off the plane).
     S.pts.clear();
     for (size_t i = 0; i < a.size(); ++i)
       for (size_t j = 0; j < b.size(); ++j) {
