@@ -225,7 +225,9 @@ void parse_rule(std::string_view text, Rule& rule, int& order) {
 
 DenseMatrixOperator assemble(const mesh::PatchGeometry& geometry, const Options& options, Stats* stats) {
   Stats local;
-  detail::Assembler a(geometry, options, stats ? *stats : local);
+  // A caller's caster is built on the geometry as given: keep its coordinates then.
+  const std::unique_ptr<mesh::PatchGeometry> near = options.caster ? nullptr : detail::moved_to_origin(geometry);
+  detail::Assembler a(near ? *near : geometry, options, stats ? *stats : local);
   return a.run();
 }
 

@@ -514,8 +514,12 @@ std::size_t estimate_hierarchy_bytes(std::size_t n, double tolerance) {
   return std::size_t(mb * 1048576.0);
 }
 
-HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const HierarchyOptions& o, HierarchyStats* stats) {
+HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const HierarchyOptions& o, HierarchyStats* stats) {
   const auto t0 = Clock::now();
+  // Far from the origin: built on (and owning) a copy moved there (detail::moved_to_origin), unless a caller's
+  // caster is tied to the coordinates as given.
+  std::unique_ptr<mesh::PatchGeometry> near = o.caster ? nullptr : detail::moved_to_origin(given);
+  const mesh::PatchGeometry& g = near ? *near : given;
   HierarchyStats local;
   HierarchyStats& st = stats ? *stats : local;
   st = HierarchyStats{};
@@ -553,6 +557,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& g, const Hierarc
   HierarchicalOperator op;
   HierarchicalOperator::Impl& d = *op.d_;
   d.g = &g;
+  d.owned = std::move(near);  // g stays valid: the object does not move
   d.n = n;
   if (n == 0) return op;
   auto body = [&] {

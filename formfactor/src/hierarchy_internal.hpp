@@ -1,6 +1,7 @@
 #pragma once
 // Internals of the hierarchical operator (hierarchy.hpp): the cluster tree and the stored links.
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "internal.hpp"
@@ -33,7 +34,8 @@ constexpr double kFlatCone = 1e-7;  // radians
 }  // namespace detail
 
 struct HierarchicalOperator::Impl {
-  const mesh::PatchGeometry* g = nullptr;
+  const mesh::PatchGeometry* g = nullptr;       // the caller's geometry, or `owned`
+  std::unique_ptr<mesh::PatchGeometry> owned;  // a copy moved to the origin (far scenes)
   int n = 0;
   detail::PatchData P;
   std::vector<detail::HNode> nodes;  // pre-order: parents before children

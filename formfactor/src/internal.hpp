@@ -3,6 +3,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -21,6 +22,12 @@ void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double
 
 // (1/2pi)|sum_k theta_k n.c_k/|c_k||: the point-to-polygon form factor with no culling or clipping; the caller
 // guarantees that the polygon lies in x's closed front half-space and x is in front of it.
+// Form factors do not change under translation, but computing them far from the origin loses digits: at 1e6 m a
+// coordinate carries ~1e-10 m of round-off, which near pairs' rules amplify (examples/room.obj moved by
+// (1e6, 0, -2e6) m failed its reciprocity check at 9x the bound). A copy of g moved so that its bounding-box
+// centre is at the origin if that centre lies farther from the origin than the box's diagonal; else null.
+std::unique_ptr<mesh::PatchGeometry> moved_to_origin(const mesh::PatchGeometry& g);
+
 // Signed Lambert contour sum sum_k theta_k n.c_k/|c_k| (no absolute value, no 1/2pi): additive over oriented
 // contours, so holes with reversed orientation subtract (exact visibility's unions).
 double signed_contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly);

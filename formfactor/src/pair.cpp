@@ -70,6 +70,18 @@ void outer_rule(std::span<const Vec3> poly, std::span<const std::array<int, 3>> 
   for (size_t k = first; k < out.size(); ++k) out[k][3] /= total;
 }
 
+std::unique_ptr<mesh::PatchGeometry> moved_to_origin(const mesh::PatchGeometry& g) {
+  Eigen::AlignedBox3d box;
+  for (const Vec3& p : g.points) box.extend(p);
+  if (box.isEmpty()) return nullptr;
+  const Vec3 centre = box.center();
+  if (!(centre.norm() > box.diagonal().norm())) return nullptr;
+  auto t = std::make_unique<mesh::PatchGeometry>(g);
+  for (Vec3& p : t->points) p -= centre;
+  for (Vec3& c : t->centroid) c -= centre;
+  return t;
+}
+
 PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
   PatchData P;
   const int n = g.size();
