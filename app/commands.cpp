@@ -139,13 +139,7 @@ OperatorChoice choose_operator(const CommonOptions& o, int n, double rho_max) {
   const std::size_t hier = formfactor::estimate_hierarchy_bytes(std::size_t(n), o.hierarchy.tolerance);
   const std::string avail = fmt::format("{} available ({})", megabytes(mem.bytes), mem.source);
   const bool fixed_rule = o.ff_rule != "adaptive";
-  // Exact visibility is computed by the dense assembly only: the hierarchy's links and leaf pairs take rays.
-  const bool exact_visibility = !o.no_visibility && o.visibility != "rays";
   if (o.op == "hierarchical") {
-    if (exact_visibility)
-      throw InputError("--operator hierarchical: --visibility " + o.visibility +
-                       " is computed by the dense assembly only (the hierarchy's links use rays); use --operator "
-                       "dense or --visibility rays");
     if (o.adaptive_budget > 0)
       throw InputError("--operator hierarchical: adaptive refinement (--adaptive-budget) reuses dense matrices between "
                        "rounds; use --operator dense or auto");
@@ -165,10 +159,9 @@ OperatorChoice choose_operator(const CommonOptions& o, int n, double rho_max) {
                                    n, megabytes(dense), n, avail, megabytes(hier)));
     return {false, fmt::format("requested; {} of {}", megabytes(dense), avail)};
   }
-  if (o.adaptive_budget > 0 || fixed_rule || exact_visibility) {
-    const std::string why = fixed_rule        ? "the fixed rule '" + o.ff_rule + "'"
-                            : exact_visibility ? "--visibility " + o.visibility
-                                               : std::string("adaptive refinement (--adaptive-budget)");
+  if (o.adaptive_budget > 0 || fixed_rule) {
+    const std::string why =
+        fixed_rule ? "the fixed rule '" + o.ff_rule + "'" : std::string("adaptive refinement (--adaptive-budget)");
     if (dense > mem.bytes)
       throw InputError(fmt::format("the dense matrix for {} patches needs {}, more than the {}, and {} needs the dense "
                                    "operator; use fewer patches (a larger --max-edge)",
@@ -207,6 +200,7 @@ formfactor::HierarchyOptions hierarchy_options(const CommonOptions& o, const mes
   h.entry_tolerance = o.ff.tolerance;
   h.max_reflectance = rho_max;
   h.visibility = !o.no_visibility;
+  h.visibility_method = formfactor::parse_visibility_method(o.visibility);
   h.rays_per_pair = o.ff.rays_per_pair;
   h.threads = o.threads;
   h.max_bytes = o.ff.max_bytes;
@@ -232,6 +226,13 @@ formfactor::Stats stats_of(const formfactor::HierarchyStats& h, const formfactor
   st.pairs_shaft_culled = h.pairs_shaft_clear;
   st.pairs_orientation_culled = h.pairs_culled;
   st.rays_cast = h.rays_cast;
+  st.visibility_method = formfactor::to_string(o.visibility_method);
+  st.pairs_exact_clear = h.pairs_exact_clear;
+  st.pairs_exact_hidden = h.pairs_exact_hidden;
+  st.pairs_exact_integrated = h.pairs_exact_integrated;
+  st.exact_points = h.exact_points;
+  st.pairs_exact_over_tolerance = h.pairs_exact_over_tolerance;
+  st.pairs_over_tolerance = h.pairs_exact_over_tolerance;  // the finding "pairs above tolerance"
   st.row_sum_min = h.row_sum_min;
   st.row_sum_max = h.row_sum_max;
   st.row_sum_mean = h.row_sum_mean;
@@ -411,6 +412,9 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                       {"far_links_per_level", h.far_links_per_level}, {"pairs_culled", h.pairs_culled},
                       {"links_shaft_clear", h.links_shaft_clear}, {"links_ray_tested", h.links_ray_tested},
                       {"links_blocked", h.links_blocked}, {"pairs_ray_tested", h.pairs_ray_tested},
+                      {"pairs_exact_clear", h.pairs_exact_clear}, {"pairs_exact_hidden", h.pairs_exact_hidden},
+                      {"pairs_exact_integrated", h.pairs_exact_integrated}, {"exact_points", h.exact_points},
+                      {"pairs_exact_over_tolerance", h.pairs_exact_over_tolerance},
                       {"pairs_shaft_clear", h.pairs_shaft_clear},
                       {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
                       {"radiance_error_max", h.radiance_error_max},
@@ -492,6 +496,13 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                      h.pairs_shaft_clear, h.rays_cast,
                      h.tolerance, h.link_tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
                      per_level.empty() ? "-" : per_level);
+    const long long exact = h.pairs_exact_clear + h.pairs_exact_hidden + h.pairs_exact_integrated;
+    if (exact > 0)
+      s += fmt::format("  visibility   {}: {} patch pairs exact ({} proven clear, {} hidden, {} integrated at {} points{}); "
+                       "partly hidden cluster pairs refined to patch pairs\n",
+                       r.options ? r.options->visibility : "exact", exact, h.pairs_exact_clear, h.pairs_exact_hidden,
+                       h.pairs_exact_integrated, h.exact_points,
+                       h.pairs_exact_over_tolerance ? fmt::format(", {} above tolerance", h.pairs_exact_over_tolerance) : "");
     if (r.row_check && r.row_check->patches_checked > 0)
       s += fmt::format("  row sums     {} patches against {} rays cast from them: largest difference {:.2e}, {:.2g}x "
                        "the allowed (patch {})\n",

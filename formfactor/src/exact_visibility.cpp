@@ -600,6 +600,28 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
   return out;
 }
 
+void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double scale, std::span<const int> candidates,
+                    int i, int j, const MergedOccluders& merged, const std::vector<std::uint8_t>& convex,
+                    std::vector<int>& merged_ids, std::vector<Occluder>& occ) {
+  // Patches in one plane (the back of a two-sided face, coincident faces) never block each other's rays.
+  auto coplanar = [&](int p, int q) {
+    const double cth = P.nrm[p].dot(P.nrm[q]);
+    if (std::abs(cth) < 1 - 1e-9) return false;
+    return std::abs(P.offset[p] - (cth > 0 ? P.offset[q] : -P.offset[q])) <= 1e-9 * scale;
+  };
+  occ.clear();
+  merged_ids.clear();
+  for (int p : candidates) {
+    if (coplanar(p, i) || coplanar(p, j)) continue;
+    const int m = merged.of_patch.empty() ? -1 : merged.of_patch[size_t(p)];
+    if (m >= 0) merged_ids.push_back(m);
+    else occ.push_back({g.polygon(p), convex[size_t(p)] != 0});
+  }
+  std::sort(merged_ids.begin(), merged_ids.end());
+  merged_ids.erase(std::unique(merged_ids.begin(), merged_ids.end()), merged_ids.end());
+  for (int m : merged_ids) occ.push_back({merged.polys[size_t(m)], merged.convex[size_t(m)] != 0});
+}
+
 }  // namespace lambert::formfactor::detail
 
 namespace lambert::formfactor {

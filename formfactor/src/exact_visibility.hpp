@@ -76,4 +76,11 @@ struct MergedOccluders {
 };
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 
+// The occluders of the pair (i, j) for exact_hidden_pair, from shaft candidates (OccluderTree::collect): those
+// in the plane of i or of j are left out (they block nothing); occluders merged with coplanar neighbours enter
+// once, as their merged polygon. convex: per patch, convex polygon. merged_ids: scratch.
+void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double scale, std::span<const int> candidates,
+                    int i, int j, const MergedOccluders& merged, const std::vector<std::uint8_t>& convex,
+                    std::vector<int>& merged_ids, std::vector<Occluder>& occ);
+
 }  // namespace lambert::formfactor::detail

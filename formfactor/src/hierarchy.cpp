@@ -13,6 +13,7 @@
 #include <string>
 
 #include "hierarchy_internal.hpp"
+#include "exact_visibility.hpp"
 #include "sampling.hpp"
 
 namespace lambert::formfactor {
@@ -148,9 +149,13 @@ struct Local {
   std::vector<FarRecord> far;
   std::vector<LeafRecord> leaf;
   long long culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
+  long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   detail::SampleBuffers sb;
   std::vector<Vec3> pa, pb;
   int hint = -1;
+  detail::ExactScratchPtr exact = detail::make_exact_scratch();
+  std::vector<int> cand, merged_ids;
+  std::vector<detail::Occluder> occ;
 };
 
 constexpr double kExpansionConstant = 0.005;
@@ -195,6 +200,14 @@ class Refiner {
         caster_ = o_.caster ? o_.caster : std::shared_ptr<const Visibility>(make_embree_visibility(g_, occ));
         tree_ = detail::OccluderTree(g_, occ);
         occlusion_ = true;
+        if (o_.visibility_method != VisibilityMethod::Rays) {
+          Eigen::AlignedBox3d box;
+          for (const Vec3& v : g_.points) box.extend(v);
+          scale_ = box.diagonal().norm();
+          convex_.assign(size_t(n), 0);
+          for (int p = 0; p < n; ++p) convex_[size_t(p)] = d_.P.kind[p] <= 2;  // triangle, parallelogram, convex quad
+          merged_ = detail::merge_coplanar_occluders(g_, occ, scale_);
+        }
       }
     }
     total_ = 0.5 * d_.nodes[0].area * d_.nodes[0].area;
@@ -389,7 +402,7 @@ class Refiner {
       ++loc.shaft_clear;
       return {};
     }
-    if (!cast_rays) return {1.0, 1.0, true};
+    if (!cast_rays || o_.visibility_method != VisibilityMethod::Rays) return {1.0, 1.0, true};
     ++loc.ray_tested;
     const int R0 = std::max(1, o_.cluster_rays);
     const std::uint64_t seed = detail::mix(std::uint64_t(a) * 0x9E3779B97F4A7C15ull ^ std::uint64_t(b));
@@ -438,7 +451,7 @@ class Refiner {
       ++loc.culled;
       return;
     }
-    double Fst = e.F, sigma = 0;
+    double Fst = e.F, sigma = 0, exact_error = 0;
     if (occlusion_) {
       detail::Shaft sh = detail::make_shaft(pbox_[s], pbox_[t]);
       sh.ni = d_.P.nrm[s];
@@ -446,9 +459,31 @@ class Refiner {
       sh.nj = d_.P.nrm[t];
       sh.oj = d_.P.offset[t];
       sh.eps = d_.P.scene_eps;
-      if (tree_.may_block(sh, s, t, &loc.hint)) {
+      const double share = std::max(Fst, Fst * g_.area[s] / g_.area[t]);
+      const bool exact = o_.visibility_method == VisibilityMethod::Exact ||
+                         (o_.visibility_method == VisibilityMethod::Auto && share > etol_);
+      const bool may_block = tree_.may_block(sh, s, t, &loc.hint);
+      if (may_block && exact) {
+        // As the dense assembly's exact path: F_st minus the integral of what the occluders hide.
+        loc.cand.clear();
+        tree_.collect(sh, s, t, loc.cand);
+        detail::pair_occluders(g_, d_.P, scale_, loc.cand, s, t, merged_, convex_, loc.merged_ids, loc.occ);
+        const detail::ExactPairResult r = detail::exact_hidden_pair(
+            g_.polygon(s), d_.P.nrm[s], g_.area[s], convex_[size_t(s)] != 0, g_.polygon(t), d_.P.nrm[t],
+            convex_[size_t(t)] != 0, loc.occ, etol_, scale_, *loc.exact);
+        switch (r.outcome) {
+          case detail::ExactPairResult::kClear: ++loc.exact_clear; break;
+          case detail::ExactPairResult::kHidden: ++loc.exact_hidden; Fst = 0; break;
+          case detail::ExactPairResult::kIntegrated:
+            ++loc.exact_integrated;
+            Fst = std::max(0.0, Fst - r.H);
+            break;
+        }
+        loc.exact_points += r.points;
+        loc.exact_over += r.over_tolerance;
+        exact_error = r.error;
+      } else if (may_block) {
         ++loc.pair_ray_tested;
-        const double share = std::max(Fst, Fst * g_.area[s] / g_.area[t]);
         const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
         const detail::VisibleRatio v =
             detail::visible_ratio(g_, d_.P, *caster_, s, t, o_.rays_per_pair * m * m * m * m, loc.sb);
@@ -460,7 +495,7 @@ class Refiner {
       }
     }
     const double ratio = g_.area[s] / g_.area[t];
-    const double Fts = Fst * ratio, es = e.error, et = es * ratio, ss = sigma, sst = sigma * ratio;
+    const double Fts = Fst * ratio, es = e.error + exact_error, et = es * ratio, ss = sigma, sst = sigma * ratio;
     check_memory();
     if (Fst > 0)
       loc.leaf.push_back(swap ? LeafRecord{i, j, Fts, Fst, et, es, sst, ss} : LeafRecord{i, j, Fst, Fts, es, et, ss, sst});
@@ -482,6 +517,10 @@ class Refiner {
   std::shared_ptr<const Visibility> caster_;
   detail::OccluderTree tree_;
   bool occlusion_ = false;
+  // Exact visibility (HierarchyOptions::visibility_method != Rays): scene size, convex flags, merged occluders.
+  double scale_ = 0;
+  std::vector<std::uint8_t> convex_;
+  detail::MergedOccluders merged_;
   std::atomic<long long> links_{0};
   std::atomic<double> done_{0};
   double total_ = 1;
@@ -595,6 +634,11 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       st.links_ray_tested += l.ray_tested;
       st.rays_cast += l.rays;
       st.links_blocked += l.blocked;
+      st.pairs_exact_clear += l.exact_clear;
+      st.pairs_exact_hidden += l.exact_hidden;
+      st.pairs_exact_integrated += l.exact_integrated;
+      st.exact_points += l.exact_points;
+      st.pairs_exact_over_tolerance += l.exact_over;
       st.pairs_ray_tested += l.pair_ray_tested;
       st.pairs_shaft_clear += l.pair_shaft_clear;
       std::vector<FarRecord>().swap(l.far);

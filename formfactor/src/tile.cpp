@@ -250,12 +250,6 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   // the whole tile, then 8 x 8 sub-tiles, then single pairs. The visible fraction is symmetric.
   const auto t_visibility = Clock::now();
   if (occlusion_) {
-    // Patches in one plane (the back of a two-sided face, coincident faces) never block each other's rays.
-    auto coplanar = [&](int p, int q) {
-      const double cth = pr.P.nrm[p].dot(pr.P.nrm[q]);
-      if (std::abs(cth) < 1 - 1e-9) return false;
-      return std::abs(pr.P.offset[p] - (cth > 0 ? pr.P.offset[q] : -pr.P.offset[q])) <= 1e-9 * scale_;
-    };
     auto block_box = [&](int a0, int a1) {
       Box bx;
       for (int p = a0; p < a1; ++p) bx.add(pr.box[p]);
@@ -379,17 +373,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                   const auto t_exact = Clock::now();
                   b.cand.clear();
                   tree_.collect(sh, i, j, b.cand);
-                  b.occ.clear();
-                  b.merged_ids.clear();
-                  for (int p : b.cand) {
-                    if (coplanar(p, i) || coplanar(p, j)) continue;
-                    const int m = merged_.of_patch.empty() ? -1 : merged_.of_patch[size_t(p)];
-                    if (m >= 0) b.merged_ids.push_back(m);
-                    else b.occ.push_back({g_.polygon(p), convex_[p] != 0});
-                  }
-                  std::sort(b.merged_ids.begin(), b.merged_ids.end());
-                  b.merged_ids.erase(std::unique(b.merged_ids.begin(), b.merged_ids.end()), b.merged_ids.end());
-                  for (int m : b.merged_ids) b.occ.push_back({merged_.polys[size_t(m)], merged_.convex[size_t(m)] != 0});
+                  pair_occluders(g_, pr.P, scale_, b.cand, i, j, merged_, convex_, b.merged_ids, b.occ);
                   // A wall or slab of several occluders hiding the pair entirely: proven without integrating.
                   ++c.plane_tests;
                   const double eps = 1e-9 * scale_;

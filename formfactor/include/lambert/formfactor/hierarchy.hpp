@@ -63,6 +63,10 @@ struct HierarchyOptions {
   double entry_tolerance = 0;  // per-entry tolerance of the exact leaf pairs (formfactor::Options::tolerance); 0 = auto
   double max_reflectance = -1;
   bool visibility = true;
+  // Patch pairs that may be occluded: rays, or exact (occluders clipped out of the contour integral, as the dense
+  // assembly's Options::visibility_method; Auto as there). With Exact or Auto, cluster pairs whose shaft may be
+  // blocked are refined to patch pairs instead of linked with a ray-estimated transmittance.
+  VisibilityMethod visibility_method = VisibilityMethod::Rays;
   int rays_per_pair = 16;      // leaf pairs that may be occluded (as the dense assembly)
   int cluster_rays = 32;       // far links whose shaft may be blocked
   int threads = 0;             // 0 = all cores
@@ -79,6 +83,8 @@ struct HierarchyStats {
   long long links_shaft_clear = 0, links_ray_tested = 0, rays_cast = 0;  // cluster pairs tested for a link
   long long pairs_ray_tested = 0, pairs_shaft_clear = 0;  // patch pairs: visibility by rays / proven clear
   long long links_blocked = 0;              // cluster pairs every ray found blocked: no link stored, error admitted
+  long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;  // exact visibility path
+  long long exact_points = 0, pairs_exact_over_tolerance = 0;
   std::vector<long long> far_links_per_level;  // by the level of the deeper node
   double tolerance = 0, entry_tolerance = 0;
   double link_tolerance = 0;       // tolerance after the amplification factor (see HierarchyOptions::tolerance)
