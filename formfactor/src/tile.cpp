@@ -264,7 +264,8 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
       return !tree_.may_block(ts, -1, -1, &blocker);
     };
     // Exactly hidden: a wall or slab (occluders in one plane between the two blocks' boxes) covers every segment
-    // between them (separation.hpp). Tried on sub-tiles, where one proof replaces up to 64 pairs' rays.
+    // between them (separation.hpp). Tried on whole tiles and on 8 x 8 sub-tiles: one proof replaces the rays of
+    // up to 4,096 or 64 pairs.
     auto box_corners = [](const Box& bx, std::vector<Vec3>& out) {
       out.clear();
       for (int k = 0; k < 8; ++k)
