@@ -26,6 +26,8 @@ Poly facing(Poly p, const Vec3& n) {
   return p;
 }
 
+constexpr int kTrapezoid = 13;
+
 // Room [0,4] x [0,2.7] x [0,5] (inward), a table top and one of its legs, x 2.30-2.35, z 2.40-2.45, y 0-0.72 standing on the floor, and the
 // floor tiled around the leg's footprint with the sliver (2.35,0,2.4), (2.35,0,2.4061), (4,0,2.5) as patch 0.
 std::vector<Poly> sliver_room() {
@@ -58,9 +60,17 @@ std::vector<Poly> sliver_room() {
   // The leg (outward faces).
   box_face(0, x0, 0, h, z0, z1, Vec3(-1, 0, 0));
   box_face(0, x1, 0, h, z0, z1, Vec3(1, 0, 0));
-  box_face(2, z0, x0, x1, 0, h, Vec3(0, 0, -1));
+  // Its -z face as the storey's imprinting leaves it: a trapezoid 8 times wider at the top than at the floor
+  // (patch kTrapezoid) and a sliver triangle beside it.
+  p.push_back(facing({Vec3(x0, h, z0), Vec3(x1, h, z0), Vec3(2.3061, 0, z0), Vec3(x0, 0, z0)}, Vec3(0, 0, -1)));
+  p.push_back(facing({Vec3(x1, h, z0), Vec3(x1, 0, z0), Vec3(2.3061, 0, z0)}, Vec3(0, 0, -1)));
   box_face(2, z1, x0, x1, 0, h, Vec3(0, 0, 1));
   box_face(1, h, z0, z1, x0, x1, Vec3(0, 1, 0));
+  // A second leg in front of that face (z 1.55-1.60).
+  box_face(0, x0, 0, h, 1.55, 1.60, Vec3(-1, 0, 0));
+  box_face(0, x1, 0, h, 1.55, 1.60, Vec3(1, 0, 0));
+  box_face(2, 1.55, x0, x1, 0, h, Vec3(0, 0, -1));
+  box_face(2, 1.60, x0, x1, 0, h, Vec3(0, 0, 1));
   // The table top above it: x 1.0-2.4, z 1.5-2.5, y 0.72-0.76 (overhanging the sliver's wide end).
   box_face(1, h, 1.5, 2.5, 1.0, 2.4, Vec3(0, -1, 0));
   box_face(1, 0.76, 1.5, 2.5, 1.0, 2.4, Vec3(0, 1, 0));
@@ -96,9 +106,9 @@ int first_hit(const mesh::PatchGeometry& g, const Vec3& x, const Vec3& d, int se
   return best;
 }
 
-}  // namespace
-
-TEST(FormFactorSliver, SliverTouchingAPerpendicularFaceRowSumsToOne) {
+// Assembles the room (brute-force caster, 256 rays per pair) and compares row p with a reference: cosine-weighted
+// rays from independent uniform points on patch p, first front hit.
+void expect_row_matches_reference(int p) {
   const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(sliver_room());
   const int n = g.size();
   Options o;
@@ -109,20 +119,26 @@ TEST(FormFactorSliver, SliverTouchingAPerpendicularFaceRowSumsToOne) {
   Stats st;
   const auto F = assemble(g, o, &st).matrix();
 
-  // Reference row: cosine-weighted rays from independent uniform points on the sliver, first front hit.
-  const Vec3 a = g.polygon(0)[0], b = g.polygon(0)[1], c = g.polygon(0)[2], nn = g.normal[0];
-  const Vec3 t0 = Vec3(1, 0, 0).cross(nn).normalized(), t1 = nn.cross(t0);
+  const Vec3 nn = g.normal[p];
+  const Vec3 t0 = (std::abs(nn.x()) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0)).cross(nn).normalized(), t1 = nn.cross(t0);
+  std::vector<double> tri_area;
+  for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) {
+    const auto& T = g.triangles[k];
+    tri_area.push_back(0.5 * (g.points[T[1]] - g.points[T[0]]).cross(g.points[T[2]] - g.points[T[0]]).norm());
+  }
   std::mt19937_64 rng(12345);
   std::uniform_real_distribution<double> U(0, 1);
+  std::discrete_distribution<int> pick(tri_area.begin(), tri_area.end());
   const int N = 400000;
   std::vector<double> ref(size_t(n), 0.0);
   int missed = 0;
   for (int k = 0; k < N; ++k) {
+    const auto& T = g.triangles[size_t(g.triangle_offsets[p] + pick(rng))];
     const double su = std::sqrt(U(rng)), v = U(rng);
-    const Vec3 x = (1 - su) * a + su * (1 - v) * b + su * v * c;
+    const Vec3 x = (1 - su) * g.points[T[0]] + su * (1 - v) * g.points[T[1]] + su * v * g.points[T[2]];
     const double r1 = U(rng), phi = 2 * M_PI * U(rng), rad = std::sqrt(r1);
     const Vec3 d = rad * std::cos(phi) * t0 + rad * std::sin(phi) * t1 + std::sqrt(1 - r1) * nn;
-    const int h = first_hit(g, x, d, 0);
+    const int h = first_hit(g, x, d, p);
     if (h < 0)
       ++missed;
     else
@@ -133,19 +149,31 @@ TEST(FormFactorSliver, SliverTouchingAPerpendicularFaceRowSumsToOne) {
   double row = 0, worst = 0;
   int worst_j = -1;
   for (int j = 0; j < n; ++j) {
-    row += F(0, j);
+    row += F(p, j);
     // 5 sigma of the reference (binomial) plus 3 sigma of the whole row's ray estimate (a generous bound).
-    const double f = ref[size_t(j)], allowed = 5 * std::sqrt(f * (1 - f) / N) + 3 * st.row_visibility_sigma[0] + 1e-4;
-    const double excess = std::abs(F(0, j) - f) / allowed;
+    const double f = ref[size_t(j)], allowed = 5 * std::sqrt(f * (1 - f) / N) + 3 * st.row_visibility_sigma[size_t(p)] + 1e-4;
+    const double excess = std::abs(F(p, j) - f) / allowed;
     if (excess > worst) {
       worst = excess;
       worst_j = j;
     }
-    if (F(0, j) > 1e-4 || f > 1e-4)
-      std::printf("  F[0,%2d] = %.5f  reference %.5f  (%.2fx allowed)\n", j, F(0, j), f, excess);
+    if (F(p, j) > 1e-3 || f > 1e-3)
+      std::printf("  F[%d,%2d] = %.5f  reference %.5f  (%.2fx allowed)\n", p, j, F(p, j), f, excess);
   }
-  std::printf("  row sum %.5f, row error bound %.2e, visibility sigma %.2e\n", row, st.row_error_bound[0],
-              st.row_visibility_sigma[0]);
-  EXPECT_NEAR(row, 1.0, st.row_error_bound[0] + 3 * st.row_visibility_sigma[0] + 1e-3);
-  EXPECT_LE(worst, 1.0) << "entry F[0," << worst_j << "] = " << F(0, worst_j) << ", reference " << ref[size_t(worst_j)];
+  std::printf("  row %d sums to %.5f, row error bound %.2e, visibility sigma %.2e\n", p, row,
+              st.row_error_bound[size_t(p)], st.row_visibility_sigma[size_t(p)]);
+  EXPECT_NEAR(row, 1.0, st.row_error_bound[size_t(p)] + 3 * st.row_visibility_sigma[size_t(p)] + 1e-3);
+  EXPECT_LE(worst, 1.0) << "entry F[" << p << "," << worst_j << "] = " << F(p, worst_j) << ", reference "
+                        << ref[size_t(worst_j)];
 }
+
+}  // namespace
+
+// Ray samples on a triangle were stratified along one coordinate only, the other jittered in [0.05, 0.95]: the
+// wedges along two edges were never sampled, and the shadow of a leg touching the sliver's short edge was missed
+// (storey.stl, patch 34: row sum 1.032).
+TEST(FormFactorSliver, SliverTouchingAPerpendicularFaceRowSumsToOne) { expect_row_matches_reference(0); }
+
+// Convex quads were sampled through their bilinear map, uniform in area only for parallelograms: the narrow end
+// of a tapered leg face was sampled 8 times too densely (storey.stl, patch 172: row sum 1.023 at 256 rays).
+TEST(FormFactorSliver, TaperedQuadRowSumsToOne) { expect_row_matches_reference(kTrapezoid); }
