@@ -34,9 +34,9 @@ void sample_patch(const mesh::PatchGeometry& g, const PatchData& P, int p, int k
   out.clear();
   const auto poly = g.polygon(p);
   const int n = k1 * k2;
-  // Parallelograms: strata of the unit square mapped bilinearly (an affine map: area-uniform). Any other quad's
-  // bilinear map has a varying Jacobian and would weight part of the patch more (a trapezoid left by imprinting
-  // biased its pairs' visible fractions by 5 %): it takes the triangles, as general polygons do.
+  // Parallelograms: the bilinear map, whose Jacobian is constant (uniform in area). Not for other convex quads:
+  // there it is not, and a trapezoid 8 times wider at one end than the other (a leg face cut by the floor)
+  // had its narrow end sampled 8 times too densely; they take the area-weighted triangles below.
   if (P.kind[p] == 1) {
     for (int a = 0; a < k1; ++a)
       for (int b = 0; b < k2; ++b) {
@@ -46,7 +46,12 @@ void sample_patch(const mesh::PatchGeometry& g, const PatchData& P, int p, int k
       }
     return;
   }
-  // Triangles of the patch by cumulative area; within a triangle, the square-to-triangle map.
+  // Triangles of the patch by cumulative area; within a triangle, the square-to-triangle map. Both of its
+  // coordinates are stratified: u (cumulative area) in n strata, v (across the triangle, from T[1]'s side to
+  // T[2]'s) in k2 strata, each run of k2 consecutive u strata taking every v stratum once (a k1 x k2 grid of
+  // equal-area strata). An unstratified v jittered in [0.05, 0.95] never sampled the wedges along the edges
+  // T[0]T[1] and T[0]T[2] (5 % of the area each): on a sliver whose short edge touches an occluder, the shadow
+  // there was missed and the visible fraction biased high, at any number of rays.
   const int t0 = g.triangle_offsets[p], t1 = g.triangle_offsets[p + 1];
   for (int a = 0; a < k1; ++a)
     for (int b = 0; b < k2; ++b) {
@@ -60,7 +65,7 @@ void sample_patch(const mesh::PatchGeometry& g, const PatchData& P, int p, int k
         if (u <= at || t == t1 - 1) break;
         u -= at;
       }
-      const double su = std::sqrt(std::clamp(u / at, 0.0, 1.0)), v = jitter(seed, 2 * k + 1);
+      const double su = std::sqrt(std::clamp(u / at, 0.0, 1.0)), v = (b + jitter(seed, 2 * k + 1)) / k2;
       const auto& T = g.triangles[t];
       out.push_back((1 - su) * g.points[T[0]] + su * (1 - v) * g.points[T[1]] + su * v * g.points[T[2]]);
     }
@@ -79,11 +84,15 @@ void sample_polygon(std::span<const Vec3> poly, const Vec3& normal, int n, std::
     total += area[t];
   }
   if (!(total > 0)) return;
+  // u (cumulative area) in n strata, v in k2 strata swept by each run of k2 consecutive u strata (as in
+  // sample_patch: an unstratified v misses the wedges along two edges of every triangle).
+  const int k2 = std::max(1, int(std::floor(std::sqrt(double(n)))));
   for (int k = 0; k < n; ++k) {
     double u = (k + jitter(seed, 2 * k)) / n * total;
     size_t t = 0;
     for (; t + 1 < tris.size() && u > area[t]; ++t) u -= area[t];
-    const double su = std::sqrt(std::clamp(area[t] > 0 ? u / area[t] : 0.0, 0.0, 1.0)), v = jitter(seed, 2 * k + 1);
+    const double su = std::sqrt(std::clamp(area[t] > 0 ? u / area[t] : 0.0, 0.0, 1.0)),
+                 v = (k % k2 + jitter(seed, 2 * k + 1)) / k2;
     const auto& T = tris[t];
     out.push_back((1 - su) * poly[T[0]] + su * (1 - v) * poly[T[1]] + su * v * poly[T[2]]);
   }

@@ -11,12 +11,14 @@ namespace lambert::formfactor::detail {
 
 std::uint64_t mix(std::uint64_t x);  // splitmix64
 
-// n = k1 k2 stratified points on patch p (grid of strata in the patch's own parameterisation, jittered inside
-// each stratum, so no point lies on the patch boundary).
+// n = k1 k2 stratified points on patch p, uniform in area: a k1 x k2 grid of equal-area strata, jittered inside
+// each stratum, so no point lies on the patch boundary. Parallelograms through their bilinear map; triangles,
+// other convex quads and polygons through their triangles by cumulative area (both coordinates stratified).
 void sample_patch(const mesh::PatchGeometry& g, const PatchData& P, int p, int k1, int k2, std::uint64_t seed,
                   std::vector<Vec3>& out);
 // n stratified points on a planar polygon with unit normal `normal` (the part of a patch in front of another
-// patch's plane): triangles by cumulative area, the square-to-triangle map inside each.
+// patch's plane): triangles by cumulative area, the square-to-triangle map inside each (both coordinates
+// stratified).
 void sample_polygon(std::span<const Vec3> poly, const Vec3& normal, int n, std::uint64_t seed, std::vector<Vec3>& out);
 
 struct SampleBuffers {
