@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -415,6 +417,43 @@ TEST(RealModelsImprint, FaceCrossingWallsGivesFormFactorsInUnitRangeAndRowSumsOf
         EXPECT_GE(row, 1 - 1e-6) << "patch " << i << " (input face " << scene.face_id[i] << ")";
       }
     }
+  }
+}
+
+// A roof triangle overhanging a building's corner by 3 mm (uDALES, input faces 2839, 3295, 3348): the two walls'
+// top edges lie in the roof's plane and cut the triangle from one edge to the corner and back, leaving a sliver
+// of eave outside the walls. Once, whether the cut's ends fell on the roof's edge or 1e-16 inside it decided
+// whether the roof was split, so the model split 73 faces at the origin and 80 others when moved by
+// (5e5, 4e6) m. Wherever the model sits, the roof is split in two along the walls, with the same pieces.
+TEST(RealModelsImprint, RoofOverhangingACornerIsSplitWhereverTheModelSits) {
+  const std::vector<Vec3> roof = {{87.5, 52.169872, 20}, {87.113091, 51.96846, 20}, {87.423149, 51.649048, 20}};
+  const std::vector<Vec3> wall_a = {{87.568123, 52.225899, 10}, {87.269951, 52.044968, 20}, {87.866295, 52.406834, 20}};
+  const std::vector<Vec3> wall_b = {{87.269951, 52.044968, 10}, {86.545082, 51.744717, 20}, {87.269951, 52.044968, 20}};
+  const std::vector<Vec3> offsets = {{0, 0, 0}, {5e5, 4e6, 0}, {-3.7e5, 1.234567e6, 0}, {1e6, -1e6, 0},
+                                     {123456.789, 9876543.21, 0}, {0.1, 0.2, 0}};
+  for (const Vec3& off : offsets) {
+    shapes::Polygons p;
+    for (const auto* f : {&roof, &wall_a, &wall_b}) {
+      std::vector<Vec3> q;
+      // As a file would hold them: the moved coordinates printed with 6 decimals and read back.
+      for (const Vec3& v : *f) {
+        char buf[3][64];
+        for (int a = 0; a < 3; ++a) std::snprintf(buf[a], sizeof buf[a], "%.6f", v[a] + off[a]);
+        q.emplace_back(std::strtod(buf[0], nullptr), std::strtod(buf[1], nullptr), std::strtod(buf[2], nullptr));
+      }
+      p.push_back(q);
+    }
+    const PolygonSoup s = soup_from(p);
+    const Scene scene = prepare_and_build(s, {});
+    int roof_pieces = 0;
+    double roof_area = 0;
+    for (int k = 0; k < scene.patches(); ++k)
+      if (scene.face_id[k] == 0) ++roof_pieces, roof_area += scene.geometry.area[k];
+    EXPECT_EQ(roof_pieces, 2) << "offset " << off.transpose() << ": " << all_warnings(scene.report);
+    EXPECT_EQ(count(scene.report, "faces_imprinted"), 1) << "offset " << off.transpose() << ": " << all_warnings(scene.report);
+    // The pieces tile the roof (0.0930164 m^2; the moved corners are the same decimals, held to ~1e-9 m near
+    // 1e7 m, which moves the area by < 1e-8 m^2).
+    EXPECT_NEAR(roof_area, 0.0930163897, 1e-7) << "offset " << off.transpose();
   }
 }
 

@@ -175,24 +175,91 @@ void intersect_pair(FaceData& f, FaceData& g, double tol) {
 }
 
 // Splits face k along its cuts: the pieces (corner index lists, same winding), or empty if none.
-std::vector<std::vector<int>> split_face(const PolygonSoup& s, int k, const FaceData& f, PointIndex& index) {
+// Cut ends within tol of the face's boundary are made vertices of the boundary (on a corner, or inserted into
+// the edge), so that a cut from an edge into the face and back closes its region whichever side of the edge
+// rounding put the end: left in the interior by 1e-16, the region stayed open and the face was not split, and
+// which of the two happened depended on where the model sits (uDALES moved by (5e5, 4e6) m split other faces).
+std::vector<std::vector<int>> split_face(const PolygonSoup& s, int k, const FaceData& f, PointIndex& index,
+                                         double tol) {
   CDT cdt;
   const auto& fv = s.faces[k].vertices;
-  std::vector<CDT::Vertex_handle> corner(fv.size());
+  const size_t nc = fv.size();
+  // Cut ends on the boundary: per end, the corner it is (c) or the edge it lies in (nc + c, with its parameter).
+  struct OnBoundary {
+    size_t at = SIZE_MAX;  // corner c, or nc + c for edge c (from corner c to c + 1)
+    double t = 0;          // parameter along the edge
+  };
+  std::vector<std::array<OnBoundary, 2>> ends(f.cuts.size());
+  std::vector<std::vector<std::pair<double, Vec3>>> on_edge(nc);
+  for (size_t k2 = 0; k2 < f.cuts.size(); ++k2)
+    for (int e = 0; e < 2; ++e) {
+      const Vec3& p = f.cuts[k2][size_t(e)];
+      double best = tol;
+      for (size_t c = 0; c < nc; ++c) {
+        const double d = (p - f.poly[c]).norm();
+        if (d <= best) best = d, ends[k2][size_t(e)] = {c, 0.0};
+      }
+      if (ends[k2][size_t(e)].at != SIZE_MAX) continue;
+      for (size_t c = 0; c < nc; ++c) {
+        const Vec3 &a = f.poly[c], &b = f.poly[(c + 1) % nc];
+        const double len2 = (b - a).squaredNorm();
+        if (!(len2 > 0)) continue;
+        const double t = std::clamp((p - a).dot(b - a) / len2, 0.0, 1.0);
+        const double d = (a + t * (b - a) - p).norm();
+        if (d <= best) best = d, ends[k2][size_t(e)] = {nc + c, t};
+      }
+      if (ends[k2][size_t(e)].at != SIZE_MAX && ends[k2][size_t(e)].at >= nc)
+        on_edge[ends[k2][size_t(e)].at - nc].push_back({ends[k2][size_t(e)].t, p});
+    }
+  // The outline: corners, and in each edge the cut ends lying in it (in order along it, one per position).
+  std::vector<CDT::Vertex_handle> corner(nc);
+  std::vector<std::vector<std::pair<double, CDT::Vertex_handle>>> edge_vertices(nc);
   std::vector<K::Point_2> outline;
-  for (size_t c = 0; c < fv.size(); ++c) {
+  std::vector<CDT::Vertex_handle> ring;
+  for (size_t c = 0; c < nc; ++c) {
     const Eigen::Vector2d q = to2(f, f.poly[c]);
     outline.emplace_back(q.x(), q.y());
     corner[c] = cdt.insert(outline.back());
     corner[c]->info().index = fv[c];
+    ring.push_back(corner[c]);
+    auto& pts = on_edge[c];
+    std::sort(pts.begin(), pts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    Vec3 last(INFINITY, INFINITY, INFINITY);
+    for (const auto& [t, p] : pts) {
+      if ((p - last).norm() <= tol) {  // the same point again (two cuts meeting on the edge)
+        edge_vertices[c].push_back({t, edge_vertices[c].back().second});
+        continue;
+      }
+      last = p;
+      // The end's position on the edge (within tol of the cut's end; a point of the face's plane).
+      const Vec3 a = f.poly[c], b = f.poly[(c + 1) % nc];
+      const Eigen::Vector2d q2 = to2(f, a + t * (b - a));
+      outline.emplace_back(q2.x(), q2.y());
+      const CDT::Vertex_handle h = cdt.insert(outline.back());
+      if (h->info().index < 0) h->info().index = index.find_or_add(p);
+      edge_vertices[c].push_back({t, h});
+      ring.push_back(h);
+    }
   }
-  for (size_t c = 0; c < fv.size(); ++c) cdt.insert_constraint(corner[c], corner[(c + 1) % fv.size()]);
-  for (const auto& cut : f.cuts) {
+  for (size_t r = 0; r < ring.size(); ++r)
+    if (ring[r] != ring[(r + 1) % ring.size()]) cdt.insert_constraint(ring[r], ring[(r + 1) % ring.size()]);
+  for (size_t k2 = 0; k2 < f.cuts.size(); ++k2) {
+    const auto& cut = f.cuts[k2];
     CDT::Vertex_handle h[2];
     for (int e = 0; e < 2; ++e) {
-      const Eigen::Vector2d q = to2(f, cut[e]);
+      const OnBoundary& ob = ends[k2][size_t(e)];
+      if (ob.at < nc) {
+        h[e] = corner[ob.at];
+        continue;
+      }
+      if (ob.at != SIZE_MAX) {
+        for (const auto& [t, hv] : edge_vertices[ob.at - nc])
+          if (t == ob.t) h[e] = hv;
+        continue;
+      }
+      const Eigen::Vector2d q = to2(f, cut[size_t(e)]);
       h[e] = cdt.insert({q.x(), q.y()});
-      if (h[e]->info().index < 0) h[e]->info().index = index.find_or_add(cut[e]);
+      if (h[e]->info().index < 0) h[e]->info().index = index.find_or_add(cut[size_t(e)]);
     }
     if (h[0] != h[1]) cdt.insert_constraint(h[0], h[1]);
   }
@@ -424,7 +491,7 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
   long pieces_added = 0, slivers = 0;
   for (int k = 0; k < nf; ++k) {
     std::vector<std::vector<int>> pieces;
-    if (!fd[k].cuts.empty()) pieces = split_face(s, k, fd[k], index);
+    if (!fd[k].cuts.empty()) pieces = split_face(s, k, fd[k], index, tol);
     if (pieces.empty()) {
       out.push_back(s.faces[k]);
       check.push_back(in_contact[k]);
