@@ -235,9 +235,11 @@ struct Elem {
 int combine(int a, int b) { return a < 0 ? b : b < 0 ? a : a == b ? a : 2; }
 struct Leaf {
   Elem e;
-  std::array<Elem, 4> kids;  // bisections: pairs (kids[2d], kids[2d+1]) for direction d (0: across s, 1: across t)
-  int best = 0;
-  int occ_begin = 0, occ_count = 0;  // the element's occluders (in the pair's pool)
+  std::array<Elem, 4> kids;  // bisections: pairs (kids[2d], kids[2d+1]) for direction d (0: across s, 1: across t);
+                             // or the 2-3 pieces of a split along a critical line
+  int first = 0, nkids = 2;  // the children the leaf is refined into: kids[first, first + nkids)
+  int occ_begin = 0, occ_count = 0;    // the element's occluders (in the pair's pool)
+  int line_begin = 0, line_count = 0;  // the critical lines crossing it (in the pair's line pool)
   double value = 0, err = 0;  // value of the best bisection; max over directions of |Q - bisection|
   bool operator<(const Leaf& o) const { return err < o.err; }
 };
@@ -357,6 +359,122 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
   return ExactPairResult::kIntegrated;
 }
 
+// A critical line of the pair on the source's plane (discontinuity meshing, Heckbert 1992): from a point x on it
+// a vertex of one polygon (the target or an occluder) lines up with an edge of another, so the hidden part of
+// the target changes its combinatorial structure there; F_hidden(x) is smooth between such lines, except on the
+// curves where three edges line up (EEE events, left to the adaptive rule).
+struct Critical {
+  Vec3 a, b;            // on the source's plane
+  bool whole = false;   // the whole line through a and b (the projection passes through infinity), else [a, b]
+  bool target = false;  // an occluder's vertex or edge against the target's (else: two occluders')
+};
+
+// The central projection of the segment [q0, q1] from c onto the plane ns.y = os: the x on that plane for which
+// c and a point of the segment line up. Appended to `out` unless it is a point or lies at infinity.
+void project_critical(const Vec3& c, const Vec3& q0, const Vec3& q1, const Vec3& ns, double os, bool target,
+                      double eps, std::vector<Critical>& out) {
+  const double hc = os - ns.dot(c);
+  if (!(std::abs(hc) > eps)) return;  // c on the plane: every such line passes through c itself
+  const double d0 = ns.dot(q0 - c), d1 = ns.dot(q1 - c);
+  // c on (or within rounding of) the segment's line, as where two faces of one solid share an edge: the plane
+  // through them is undefined and no event happens there.
+  if (!((q0 - c).cross(q1 - c).norm() > 1e-7 * (q0 - c).norm() * (q1 - c).norm())) return;
+  if (d0 * d1 > 0) {
+    const Vec3 a = c + (hc / d0) * (q0 - c), b = c + (hc / d1) * (q1 - c);
+    if ((b - a).norm() > eps) out.push_back({a, b, false, target});
+    return;
+  }
+  // The segment crosses the plane through c parallel to the source: its image is the whole line (two rays).
+  const Vec3 m = (q0 - c).cross(q1 - c);
+  const Vec3 dir = ns.cross(m);
+  if (!(dir.norm() > 1e-12 * (q0 - c).norm() * (q1 - c).norm()) || (d0 == 0 && d1 == 0)) return;
+  const Vec3 a = std::abs(d0) >= std::abs(d1) ? Vec3(c + (hc / d0) * (q0 - c)) : Vec3(c + (hc / d1) * (q1 - c));
+  out.push_back({a, a + dir.normalized() * (q1 - q0).norm(), true, target});
+}
+
+// The distinct corners of an element (a triangle enters as a quad with its last corner repeated).
+int corners_of(const std::array<Vec3, 4>& v, std::array<Vec3, 4>& c) {
+  int n = 0;
+  for (int k = 0; k < 4; ++k)
+    if (n == 0 || !(v[k] == c[n - 1])) c[n++] = v[k];
+  if (n > 1 && c[n - 1] == c[0]) --n;
+  return n;
+}
+
+// True if the critical line (or segment) c passes through the interior of the convex element v, leaving more
+// than eps on both sides. `side` receives the signed distance of the element's centre from the line.
+bool crosses(const Critical& c, const std::array<Vec3, 4>& v, const Vec3& ns, double eps, double* side) {
+  std::array<Vec3, 4> p;
+  const int n = corners_of(v, p);
+  if (n < 3) return false;
+  const Vec3 d = c.b - c.a;
+  const Vec3 m = ns.cross(d);
+  const double len = m.norm();
+  if (!(len > 0)) return false;
+  double lo = INFINITY, hi = -INFINITY;
+  Vec3 centre = Vec3::Zero();
+  for (int k = 0; k < n; ++k) {
+    const double s = m.dot(p[k] - c.a) / len;
+    lo = std::min(lo, s), hi = std::max(hi, s);
+    centre += p[k];
+  }
+  if (!(lo < -eps && hi > eps)) return false;
+  *side = m.dot(centre / double(n) - c.a) / len;
+  if (c.whole) return true;
+  // The part of the segment inside the element (Cyrus-Beck against its sides, oriented by the element's turn).
+  double turn = 0;
+  for (int k = 1; k + 1 < n; ++k) turn += (p[k] - p[0]).cross(p[k + 1] - p[0]).dot(ns);
+  const double o = turn >= 0 ? 1 : -1;
+  double t0 = 0, t1 = 1;
+  for (int k = 0; k < n; ++k) {
+    const Vec3 nk = o * ns.cross(p[(k + 1) % n] - p[k]);  // points into the element
+    const double num = nk.dot(c.a - p[k]), den = nk.dot(d);
+    if (den == 0) {
+      if (num < 0) return false;
+      continue;
+    }
+    const double t = -num / den;
+    if (den > 0) t0 = std::max(t0, t);
+    else t1 = std::min(t1, t);
+  }
+  return (t1 - t0) * d.norm() > eps;
+}
+
+// Splits the convex element v along the line of c into 2 or 3 elements (triangles as quads with a repeated last
+// corner, a pentagon as a quad and a triangle), same orientation, written to kids; returns their number.
+int split_along(const std::array<Vec3, 4>& v, const Critical& c, const Vec3& ns, std::array<Elem, 4>& kids) {
+  std::array<Vec3, 4> p;
+  const int n = corners_of(v, p);
+  const Vec3 m = ns.cross(c.b - c.a);
+  std::array<Vec3, 6> side[2];
+  int cnt[2] = {0, 0};
+  for (int k = 0; k < n; ++k) {
+    const Vec3 &a = p[k], &b = p[(k + 1) % n];
+    const double sa = m.dot(a - c.a), sb = m.dot(b - c.a);
+    if (sa >= 0) side[0][cnt[0]++] = a;
+    if (sa <= 0) side[1][cnt[1]++] = a;
+    if ((sa > 0 && sb < 0) || (sa < 0 && sb > 0)) {
+      const Vec3 x = a + (b - a) * (sa / (sa - sb));
+      side[0][cnt[0]++] = x;
+      side[1][cnt[1]++] = x;
+    }
+  }
+  int out = 0;
+  for (int h = 0; h < 2; ++h) {
+    const auto& q = side[h];
+    if (cnt[h] == 3) kids[out++].v = {q[0], q[1], q[2], q[2]};
+    else if (cnt[h] == 4) kids[out++].v = {q[0], q[1], q[2], q[3]};
+    else if (cnt[h] == 5) kids[out++].v = {q[0], q[1], q[2], q[3]}, kids[out++].v = {q[3], q[4], q[0], q[0]};
+  }
+  for (int k = 0; k < out; ++k) kids[k].has_Q = false;
+  return out;
+}
+
+// Critical lines are generated only for pairs with at most this many occluders (those between two occluders for
+// at most kMaxInterOccluders); beyond, the adaptive rule alone resolves the kinks.
+constexpr int kMaxLineOccluders = 24;
+constexpr int kMaxInterOccluders = 6;
+
 }  // namespace
 
 ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, double area_s, bool s_convex,
@@ -418,7 +536,43 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   // no point evaluated; one whose samples all see no shadow although an occluder reaches it keeps being refined
   // (error = its unoccluded contribution), so a shadow smaller than the sample spacing is never missed.
   std::vector<Vec3> corners;
-  auto push = [&](Elem e, int parent_begin, int parent_count) {
+  // Critical lines of the pair (see Critical) from its occluders clipped to the slab in front of both planes:
+  // an element no line crosses has a smooth integrand, and there a shadow cannot appear or vanish.
+  std::vector<Critical> lines;
+  std::vector<int> lpool;  // line lists of the elements: [begin, begin + count) per element
+  const bool have_lines = root_count <= kMaxLineOccluders;
+  if (have_lines) {
+    std::vector<std::vector<Vec3>> occ{size_t(root_count)};
+    for (int k = 0; k < root_count; ++k) {
+      S.a.assign(pool[size_t(k)].poly.begin(), pool[size_t(k)].poly.end());
+      clip_keep(S.a, ns, os, S.b);
+      clip_keep(S.b, nt, ot, occ[size_t(k)]);
+    }
+    auto project = [&](const Vec3& c, std::span<const Vec3> P, bool target) {
+      const size_t m = P.size();
+      if (std::abs(ns.dot(c) - os) <= eps) {
+        // c on the source's plane: x lines up with c and a point of the segment only within the plane, i.e.
+        // on the line through c and a corner that lies on the plane too (a leg's foot and a wall's foot).
+        for (const Vec3& q : P)
+          if (std::abs(ns.dot(q) - os) <= eps && (q - c).norm() > eps) lines.push_back({c, q, true, target});
+        return;
+      }
+      for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, target, eps, lines);
+    };
+    for (const auto& O : occ) {
+      if (O.size() < 3) continue;
+      for (const Vec3& v : ct) project(v, O, true);
+      for (const Vec3& w : O) project(w, ct, true);
+    }
+    if (root_count <= kMaxInterOccluders)
+      for (size_t a = 0; a < occ.size(); ++a)
+        for (size_t b = 0; b < occ.size(); ++b)
+          if (a != b && occ[a].size() >= 3 && occ[b].size() >= 3)
+            for (const Vec3& w : occ[a]) project(w, occ[b], false);
+    for (size_t k = 0; k < lines.size(); ++k) lpool.push_back(int(k));
+  }
+  const int root_lines = int(lpool.size());
+  auto push = [&](Elem e, int parent_begin, int parent_count, int parent_lbegin, int parent_lcount) {
     Leaf l;
     corners.assign(e.v.begin(), e.v.end());
     l.occ_begin = int(pool.size());
@@ -429,40 +583,75 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     cur_begin = l.occ_begin, cur_count = l.occ_count;
     if (!e.has_Q) rule(e);
     l.e = e;
-    {
-      const Vec3 ms0 = bilinear(e.v, 0.5, 0), ms1 = bilinear(e.v, 0.5, 1);  // across s
-      const Vec3 mt0 = bilinear(e.v, 0, 0.5), mt1 = bilinear(e.v, 1, 0.5);  // across t
-      l.kids[0].v = {e.v[0], ms0, ms1, e.v[3]};
-      l.kids[1].v = {ms0, e.v[1], e.v[2], ms1};
-      l.kids[2].v = {e.v[0], e.v[1], mt1, mt0};
-      l.kids[3].v = {mt0, mt1, e.v[2], e.v[3]};
-    }
-    double best = -1;
-    for (int d = 0; d < 2; ++d) {
-      for (int k = 0; k < 2; ++k) rule(l.kids[2 * d + k]);
-      const double v = l.kids[2 * d].Q + l.kids[2 * d + 1].Q, change = std::abs(e.Q - v);
-      if (change > best) best = change, l.best = d, l.value = v;
-      l.err = std::max(l.err, change);
-    }
-    if (!(best > 0)) {  // no direction changes anything: bisect the longest side (the samples carry no information)
-      double longest = -1;
-      for (int d = 0; d < 2; ++d) {
-        const double len = d == 0 ? (e.v[1] - e.v[0]).norm() + (e.v[2] - e.v[3]).norm()
-                                  : (e.v[3] - e.v[0]).norm() + (e.v[2] - e.v[1]).norm();
-        if (len > longest) longest = len, l.best = d, l.value = l.kids[2 * d].Q + l.kids[2 * d + 1].Q;
+    // The critical lines through e; the one nearest its centre splits it.
+    l.line_begin = int(lpool.size());
+    int pick = -1;
+    double pick_side = INFINITY;
+    if (outcome == ExactPairResult::kIntegrated)
+      for (int k = 0; k < parent_lcount; ++k) {
+        const int id = lpool[size_t(parent_lbegin + k)];
+        double side = 0;
+        if (!crosses(lines[size_t(id)], e.v, ns, eps, &side)) continue;
+        lpool.push_back(id);
+        if (std::abs(side) < pick_side) pick_side = std::abs(side), pick = id;
       }
-    }
+    l.line_count = int(lpool.size()) - l.line_begin;
     const double A = 0.5 * std::abs((e.v[2] - e.v[0]).cross(e.v[3] - e.v[1]).dot(ns));
-    // Forced refinement down to 1/64 of the source (a shadow narrower than that may still be missed when
-    // every sample of its element is outside it; the hull test keeps such elements "mixed" only while an
-    // occluder can still reach them).
+    if (pick >= 0) {
+      l.first = 0;
+      l.nkids = split_along(e.v, lines[size_t(pick)], ns, l.kids);
+      l.value = 0;
+      for (int k = 0; k < l.nkids; ++k) rule(l.kids[size_t(k)]), l.value += l.kids[size_t(k)].Q;
+      // Until no line crosses an element its rules can agree while all of them miss a kink or a sliver of shadow
+      // between their samples (a block's side and bottom: the root rule and its split agreed to 1e-12 and were
+      // both 2 % off): the error is bounded by the element's unoccluded contribution, so it is split on.
+      l.err = std::max(std::abs(e.Q - l.value), A * contour_sum(bilinear(e.v, 0.5, 0.5), ns, ct));
+    } else {
+      {
+        const Vec3 ms0 = bilinear(e.v, 0.5, 0), ms1 = bilinear(e.v, 0.5, 1);  // across s
+        const Vec3 mt0 = bilinear(e.v, 0, 0.5), mt1 = bilinear(e.v, 1, 0.5);  // across t
+        l.kids[0].v = {e.v[0], ms0, ms1, e.v[3]};
+        l.kids[1].v = {ms0, e.v[1], e.v[2], ms1};
+        l.kids[2].v = {e.v[0], e.v[1], mt1, mt0};
+        l.kids[3].v = {mt0, mt1, e.v[2], e.v[3]};
+      }
+      double best = -1;
+      int bd = 0;
+      for (int d = 0; d < 2; ++d) {
+        for (int k = 0; k < 2; ++k) rule(l.kids[size_t(2 * d + k)]);
+        const double v = l.kids[size_t(2 * d)].Q + l.kids[size_t(2 * d + 1)].Q, change = std::abs(e.Q - v);
+        if (change > best) best = change, bd = d, l.value = v;
+        l.err = std::max(l.err, change);
+      }
+      if (!(best > 0)) {  // no direction changes anything: bisect the longest side (the samples carry no information)
+        double longest = -1;
+        for (int d = 0; d < 2; ++d) {
+          const double len = d == 0 ? (e.v[1] - e.v[0]).norm() + (e.v[2] - e.v[3]).norm()
+                                    : (e.v[3] - e.v[0]).norm() + (e.v[2] - e.v[1]).norm();
+          if (len > longest)
+            longest = len, bd = d, l.value = l.kids[size_t(2 * d)].Q + l.kids[size_t(2 * d + 1)].Q;
+        }
+      }
+      l.first = 2 * bd;
+      l.nkids = 2;
+    }
     int kind = e.kind;
-    for (const Elem& k : l.kids) kind = combine(kind, k.kind);
+    for (int k = 0; k < (pick >= 0 ? l.nkids : 4); ++k) kind = combine(kind, l.kids[size_t(k)].kind);
     // Every sample saw nothing hidden, or the whole target hidden, although the element is neither provably
-    // clear nor provably hidden: a shadow edge (or a gap between shadows) may pass between the samples.
-    if ((kind == 0 || kind == 1) && outcome == ExactPairResult::kIntegrated && A > area_s * kForcedArea) {
-      const Vec3 c = bilinear(e.v, 0.5, 0.5);
-      l.err = std::max(l.err, A * contour_sum(c, ns, ct));
+    // clear nor provably hidden: a shadow edge (or a gap between shadows) may pass between the samples. With
+    // critical lines, an element no line crosses keeps one combinatorial structure: if its samples saw nothing
+    // hidden, nothing is (a shadow appears only where an occluder's vertex or edge passes the target's); if they
+    // saw everything hidden, a gap can still open where three occluders' edges line up (an EEE curve): those,
+    // and every such element when the pair has too many occluders for lines, are refined down to 1/64 of the
+    // source (a shadow narrower than that may be missed). Elements that lines cross are split along them above.
+    if ((kind == 0 || kind == 1) && outcome == ExactPairResult::kIntegrated) {
+      bool force;
+      if (!have_lines) force = A > area_s * kForcedArea;
+      else force = kind == 1 && l.occ_count > 2 && A > area_s * kForcedArea;
+      if (force) {
+        const Vec3 c = bilinear(e.v, 0.5, 0.5);
+        l.err = std::max(l.err, A * contour_sum(c, ns, ct));
+      }
     }
     total_err += l.err;
     heap.push(l);
@@ -477,7 +666,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   if (convex_quad) {
     Elem e;
     e.v = {cs[0], cs[1], cs[2], cs[3]};
-    push(e, 0, root_count);
+    push(e, 0, root_count, 0, root_lines);
   } else {
     std::vector<std::array<int, 3>> tris;
     if (!s_convex) tris = mesh::triangulate_polygon(cs, ns);
@@ -495,7 +684,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
                                            std::array<Vec3, 4>{c, mca, g, mbc}}) {
         Elem e;
         e.v = q;
-        push(e, 0, root_count);
+        push(e, 0, root_count, 0, root_lines);
       }
     }
   }
@@ -505,8 +694,8 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     const Leaf top = heap.top();
     heap.pop();
     total_err -= top.err;
-    push(top.kids[2 * top.best], top.occ_begin, top.occ_count);
-    push(top.kids[2 * top.best + 1], top.occ_begin, top.occ_count);
+    for (int k = 0; k < top.nkids; ++k)
+      push(top.kids[size_t(top.first + k)], top.occ_begin, top.occ_count, top.line_begin, top.line_count);
   }
   double H = 0, err = 0;
   while (!heap.empty()) {
