@@ -418,12 +418,17 @@ void project_critical(const Vec3& c, const Vec3& q0, const Vec3& q1, const Vec3&
   out.push_back(L);
 }
 
-// The distinct corners of an element (a triangle enters as a quad with its last corner repeated).
+// The distinct corners of an element (a triangle enters as a quad with a repeated corner). Corners within 1e-12 of
+// the element's size of the previous one are the same corner: a split through a corner leaves such near-copies.
 int corners_of(const std::array<Vec3, 4>& v, std::array<Vec3, 4>& c) {
+  double size = 0;
+  for (int k = 1; k < 4; ++k) size = std::max(size, (v[k] - v[0]).lpNorm<Eigen::Infinity>());
+  const double tol = 1e-12 * size;
+  auto same = [&](const Vec3& a, const Vec3& b) { return (a - b).lpNorm<Eigen::Infinity>() <= tol; };
   int n = 0;
   for (int k = 0; k < 4; ++k)
-    if (n == 0 || !(v[k] == c[n - 1])) c[n++] = v[k];
-  if (n > 1 && c[n - 1] == c[0]) --n;
+    if (n == 0 || !same(v[k], c[n - 1])) c[n++] = v[k];
+  while (n > 1 && same(c[n - 1], c[0])) --n;
   return n;
 }
 
@@ -467,29 +472,40 @@ bool crosses(const Critical& c, const std::array<Vec3, 4>& v, const Vec3& ns, do
 }
 
 // Splits the convex element v along the line of c into 2 or 3 elements (triangles as quads with a repeated last
-// corner, a pentagon as a quad and a triangle), same orientation, written to kids; returns their number.
+// corner, a pentagon as a quad and a triangle), same orientation, written to kids; returns their number, or 0 if
+// the line does not cut the element into two proper pieces (the caller bisects instead). A corner within 1e-12 of
+// the element's width from the line lies on it: it goes to both pieces and no crossing is made next to it (a line
+// through a corner within rounding once made crossings on both of its edges and lost the element's area).
 int split_along(const std::array<Vec3, 4>& v, const Critical& c, std::array<Elem, 4>& kids) {
   std::array<Vec3, 4> p;
   const int n = corners_of(v, p);
+  if (n < 3) return 0;
+  std::array<double, 4> sd;
+  double lo = INFINITY, hi = -INFINITY;
+  for (int k = 0; k < n; ++k) sd[k] = c.u.dot(p[k] - c.p), lo = std::min(lo, sd[k]), hi = std::max(hi, sd[k]);
+  const double tol = 1e-12 * (hi - lo);
+  for (int k = 0; k < n; ++k)
+    if (std::abs(sd[k]) <= tol) sd[k] = 0;
   std::array<Vec3, 6> side[2];
   int cnt[2] = {0, 0};
   for (int k = 0; k < n; ++k) {
     const Vec3 &a = p[k], &b = p[(k + 1) % n];
-    const double sa = c.u.dot(a - c.p), sb = c.u.dot(b - c.p);
-    if (sa >= 0) side[0][cnt[0]++] = a;
-    if (sa <= 0) side[1][cnt[1]++] = a;
+    const double sa = sd[k], sb = sd[(k + 1) % n];
+    if (sa >= 0 && cnt[0] < 6) side[0][cnt[0]++] = a;
+    if (sa <= 0 && cnt[1] < 6) side[1][cnt[1]++] = a;
     if ((sa > 0 && sb < 0) || (sa < 0 && sb > 0)) {
       const Vec3 x = a + (b - a) * (sa / (sa - sb));
-      side[0][cnt[0]++] = x;
-      side[1][cnt[1]++] = x;
+      if (cnt[0] < 6) side[0][cnt[0]++] = x;
+      if (cnt[1] < 6) side[1][cnt[1]++] = x;
     }
   }
+  if (cnt[0] < 3 || cnt[0] > 5 || cnt[1] < 3 || cnt[1] > 5) return 0;
   int out = 0;
   for (int h = 0; h < 2; ++h) {
     const auto& q = side[h];
     if (cnt[h] == 3) kids[out++].v = {q[0], q[1], q[2], q[2]};
     else if (cnt[h] == 4) kids[out++].v = {q[0], q[1], q[2], q[3]};
-    else if (cnt[h] == 5) kids[out++].v = {q[0], q[1], q[2], q[3]}, kids[out++].v = {q[3], q[4], q[0], q[0]};
+    else kids[out++].v = {q[0], q[1], q[2], q[3]}, kids[out++].v = {q[3], q[4], q[0], q[0]};
   }
   for (int k = 0; k < out; ++k) kids[k].has_Q = false;
   return out;
@@ -630,9 +646,10 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       }
     l.line_count = int(lpool.size()) - l.line_begin;
     const double A = 0.5 * std::abs((e.v[2] - e.v[0]).cross(e.v[3] - e.v[1]).dot(ns));
+    if (pick >= 0) l.nkids = split_along(e.v, lines[size_t(pick)], l.kids);
+    if (pick >= 0 && l.nkids == 0) pick = -1;  // the line grazes a corner: bisect instead
     if (pick >= 0) {
       l.first = 0;
-      l.nkids = split_along(e.v, lines[size_t(pick)], l.kids);
       l.value = 0;
       for (int k = 0; k < l.nkids; ++k) rule(l.kids[size_t(k)]), l.value += l.kids[size_t(k)].Q;
       // Until no line crosses an element its rules can agree while all of them miss a kink or a sliver of shadow
