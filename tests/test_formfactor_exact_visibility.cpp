@@ -531,3 +531,75 @@ TEST(ExactVisibility, NonConvexTargetMatchesClosedForm) {
 
 }  // namespace
 }  // namespace lambert
+
+namespace lambert {
+namespace {
+
+namespace ff = formfactor;
+
+// convex_solids: a closed convex component gets one id; a component with a hole, with one face wound the wrong way,
+// or with a dent (closed but not convex) gets -1, as does a lone plate; two separate blocks get two ids. The exact
+// outer rule skips its forced search for gaps between occluders (EEE events) only on elements whose occluders all
+// share one id, so each -1 case here is one where a gap could open between critical lines.
+TEST(ExactVisibilityNumerics, ConvexSolidsAreTheClosedConvexComponentsOnly) {
+  using mesh::shapes::Polygons;
+  auto block = [](const Vec3& lo, const Vec3& hi) { return mesh::shapes::box(lo, hi, 2, false); };
+  // The +z face (one quad) of a unit block replaced by four triangles to an apex at height z: a tent (convex) for
+  // z above the top, a dent (not convex) below it. Each triangle keeps its top edge's direction: closed, consistent.
+  auto roofed = [](double z) {
+    Polygons p = mesh::shapes::box(Vec3(0, 0, 0), Vec3(1, 1, 1), 1, false);
+    const std::vector<Vec3> top = p.back();
+    p.pop_back();
+    for (size_t k = 0; k < top.size(); ++k) p.push_back({top[k], top[(k + 1) % top.size()], Vec3(0.5, 0.5, z)});
+    return p;
+  };
+  struct Case {
+    const char* name;
+    Polygons polys;
+    bool solid;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"closed block 2 x 2 per face", block(Vec3(0, 0, 0), Vec3(1, 2, 3)), true});
+  cases.push_back({"tent roof", roofed(1.5), true});
+  cases.push_back({"dented roof", roofed(0.6), false});
+  Polygons open = block(Vec3(0, 0, 0), Vec3(1, 1, 1));
+  open.pop_back();
+  cases.push_back({"block with a missing quad", open, false});
+  Polygons flipped = block(Vec3(0, 0, 0), Vec3(1, 1, 1));
+  std::reverse(flipped[3].begin(), flipped[3].end());
+  cases.push_back({"block with one quad wound backwards", flipped, false});
+  cases.push_back({"lone plate", {{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)}}, false});
+  for (const Case& c : cases) {
+    const auto g = mesh::PatchGeometry::from_polygons(c.polys);
+    std::vector<int> all(size_t(g.size()));
+    for (int p = 0; p < g.size(); ++p) all[size_t(p)] = p;
+    const std::vector<int> id = ff::detail::convex_solids(g, all, 3.0);
+    for (int p = 0; p < g.size(); ++p) {
+      if (c.solid) EXPECT_EQ(id[size_t(p)], id[0]) << c.name << ": patch " << p;
+      EXPECT_EQ(id[size_t(p)] >= 0, c.solid) << c.name << ": patch " << p << " id " << id[size_t(p)];
+    }
+  }
+  // Two blocks apart: two solids. Assembled in a room: the block of room_with_block is one solid, and its merged
+  // faces (one polygon per face) carry its id.
+  Polygons two = block(Vec3(0, 0, 0), Vec3(1, 1, 1));
+  for (auto& q : block(Vec3(2, 0, 0), Vec3(3, 1, 1))) two.push_back(q);
+  const auto g2 = mesh::PatchGeometry::from_polygons(two);
+  std::vector<int> all2(size_t(g2.size()));
+  for (int p = 0; p < g2.size(); ++p) all2[size_t(p)] = p;
+  const std::vector<int> id2 = ff::detail::convex_solids(g2, all2, 4.0);
+  const int half = g2.size() / 2;
+  for (int p = 0; p < g2.size(); ++p) EXPECT_EQ(id2[size_t(p)], p < half ? id2[0] : id2[size_t(half)]) << "patch " << p;
+  EXPECT_GE(id2[0], 0);
+  EXPECT_GE(id2[size_t(half)], 0);
+  EXPECT_NE(id2[0], id2[size_t(half)]);
+  const auto room = mesh::PatchGeometry::from_polygons(mesh::shapes::room_with_block(2, 3));
+  std::vector<int> block_patches;
+  for (int p = 6 * 2 * 2; p < room.size(); ++p) block_patches.push_back(p);
+  const auto merged = ff::detail::merge_coplanar_occluders(room, block_patches, std::sqrt(3.0));
+  ASSERT_EQ(merged.polys.size(), 6u);
+  for (size_t m = 0; m < 6; ++m) EXPECT_EQ(merged.solid[m], merged.solid[0]) << "face " << m;
+  EXPECT_GE(merged.solid[0], 0);
+}
+
+}  // namespace
+}  // namespace lambert

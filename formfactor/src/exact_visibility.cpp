@@ -695,10 +695,19 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // saw everything hidden, a gap can still open where three occluders' edges line up (an EEE curve): those,
     // and every such element when the pair has too many occluders for lines, are refined down to 1/64 of the
     // source (a shadow narrower than that may be missed). Elements that lines cross are split along them above.
+    // Not when the element's occluders are all faces of one closed convex solid (convex_solids): they hide its
+    // silhouette, a convex region whose corners are the solid's, and no gap opens without crossing a critical line
+    // (room 16 / 5: 37.6 M -> 20.1 M points, row sums unchanged).
     if ((kind == 0 || kind == 1) && outcome == ExactPairResult::kIntegrated) {
+      auto one_solid = [&] {
+        const int s0 = pool[size_t(l.occ_begin)].solid;
+        for (int k = 0; k < l.occ_count; ++k)
+          if (pool[size_t(l.occ_begin + k)].solid != s0) return false;
+        return s0 >= 0;
+      };
       bool force;
       if (!have_lines) force = A > area_s * kForcedArea;
-      else force = kind == 1 && l.occ_count > 2 && A > area_s * kForcedArea;
+      else force = kind == 1 && l.occ_count > 2 && A > area_s * kForcedArea && !(l.line_count == 0 && one_solid());
       if (force) {
         const Vec3 c = bilinear(e.v, 0.5, 0.5);
         l.err = std::max(l.err, A * contour_sum(c, ns, ct));
@@ -779,11 +788,95 @@ std::vector<Occluder> as_occluders(const std::vector<std::vector<Vec3>>& polys) 
 }
 }  // namespace
 
+std::vector<int> convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale) {
+  std::vector<int> solid(size_t(g.size()), -1);
+  if (!(scale > 0) || occluders.empty()) return solid;
+  // Corners with bit-identical coordinates are one corner (a mesh's shared vertices).
+  std::vector<std::pair<std::array<double, 3>, int>> corner;  // (coordinates, slot in the occluders' corner list)
+  std::vector<int> first(occluders.size() + 1, 0);
+  std::vector<Vec3> pos;  // per slot
+  for (size_t k = 0; k < occluders.size(); ++k) {
+    for (const Vec3& q : g.polygon(occluders[k])) corner.push_back({{q.x(), q.y(), q.z()}, int(corner.size())}), pos.push_back(q);
+    first[k + 1] = int(corner.size());
+  }
+  std::vector<int> id(corner.size());
+  std::sort(corner.begin(), corner.end());
+  int next = -1;
+  for (size_t k = 0; k < corner.size(); ++k) {
+    if (k == 0 || corner[k].first != corner[k - 1].first) ++next;
+    id[size_t(corner[k].second)] = next;
+  }
+  std::vector<Vec3> upos(size_t(next + 1));
+  for (size_t c = 0; c < id.size(); ++c) upos[size_t(id[c])] = pos[c];
+  // Edges (lower id, higher id, direction, occluder index), grouped by their corners.
+  std::vector<std::array<int, 4>> edges;
+  for (size_t k = 0; k < occluders.size(); ++k) {
+    const int b = first[k], m = first[k + 1] - b;
+    for (int e = 0; e < m; ++e) {
+      const int u = id[size_t(b + e)], v = id[size_t(b + (e + 1) % m)];
+      if (u != v) edges.push_back({std::min(u, v), std::max(u, v), u < v ? 1 : 0, int(k)});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  std::vector<int> parent(occluders.size());
+  for (size_t k = 0; k < parent.size(); ++k) parent[k] = int(k);
+  auto root = [&](int a) {
+    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
+    return a;
+  };
+  std::vector<char> open(occluders.size(), 0);  // on a boundary, non-manifold or inconsistently wound edge
+  for (size_t a = 0; a < edges.size();) {
+    size_t b = a;
+    while (b < edges.size() && edges[b][0] == edges[a][0] && edges[b][1] == edges[a][1]) ++b;
+    const bool manifold = b - a == 2 && edges[a][2] != edges[a + 1][2];
+    for (size_t k = a; k < b; ++k) {
+      if (!manifold) open[size_t(edges[k][3])] = 1;
+      parent[size_t(root(edges[k][3]))] = root(edges[a][3]);
+    }
+    a = b;
+  }
+  std::vector<std::vector<int>> members(occluders.size());
+  for (size_t k = 0; k < occluders.size(); ++k) members[size_t(root(int(k)))].push_back(int(k));
+  const double eps = 1e-9 * scale;
+  int solids = 0;
+  for (size_t r = 0; r < occluders.size(); ++r) {
+    const std::vector<int>& M = members[r];
+    if (M.empty()) continue;
+    bool ok = true;
+    for (int k : M) ok = ok && !open[size_t(k)];
+    std::vector<int> ids;  // the component's distinct corners
+    for (int k : M)
+      for (int c = first[size_t(k)]; c < first[size_t(k) + 1]; ++c) ids.push_back(id[size_t(c)]);
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    if (!ok || double(M.size()) * double(ids.size()) > 1e8) continue;
+    // Every corner of the component on one side (the same side for every face) of every face's plane.
+    int side = 0;
+    for (size_t a = 0; a < M.size() && ok; ++a) {
+      const int p = occluders[size_t(M[a])];
+      const Vec3& n = g.normal[size_t(p)];
+      const double o = n.dot(g.centroid[size_t(p)]);
+      for (size_t c = 0; c < ids.size() && ok; ++c) {
+        const double d = n.dot(upos[size_t(ids[c])]) - o;
+        if (std::abs(d) <= eps) continue;
+        const int sd = d > 0 ? 1 : -1;
+        if (side == 0) side = sd;
+        ok = sd == side;
+      }
+    }
+    if (!ok) continue;
+    for (int k : M) solid[size_t(occluders[size_t(k)])] = solids;
+    ++solids;
+  }
+  return solid;
+}
+
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders,
                                          double scale) {
   MergedOccluders out;
   out.of_patch.assign(size_t(g.size()), -1);
   if (!(scale > 0)) return out;
+  out.solid_of_patch = convex_solids(g, occluders, scale);
   // Occluders grouped by their unoriented plane (mesh::plane_ids), groups in order of first appearance.
   const std::vector<int> plane = mesh::plane_ids(g, occluders, scale);
   std::vector<std::vector<int>> groups;
@@ -828,6 +921,10 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
         convex = (poly[(k + 1) % poly.size()] - poly[k]).cross(poly[(k + 2) % poly.size()] - poly[(k + 1) % poly.size()]).dot(n) >= 0;
       out.polys.push_back(std::move(poly));
       out.convex.push_back(convex);
+      // A region is a face of a convex solid when every member of its plane is a face of that one solid.
+      int sol = out.solid_of_patch[size_t(members[0])];
+      for (int p : members) sol = out.solid_of_patch[size_t(p)] == sol ? sol : -1;
+      out.solid.push_back(sol);
     }
     // Each member belongs to the region containing its centroid (strictly inside a convex patch's own corners).
     for (size_t k = 0; k < members.size(); ++k) {
@@ -859,11 +956,11 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
     if (coplanar(p, i) || coplanar(p, j)) continue;
     const int m = merged.of_patch.empty() ? -1 : merged.of_patch[size_t(p)];
     if (m >= 0) merged_ids.push_back(m);
-    else occ.push_back({g.polygon(p), convex[size_t(p)] != 0});
+    else occ.push_back({g.polygon(p), convex[size_t(p)] != 0, merged.solid_of_patch.empty() ? -1 : merged.solid_of_patch[size_t(p)]});
   }
   std::sort(merged_ids.begin(), merged_ids.end());
   merged_ids.erase(std::unique(merged_ids.begin(), merged_ids.end()), merged_ids.end());
-  for (int m : merged_ids) occ.push_back({merged.polys[size_t(m)], merged.convex[size_t(m)] != 0});
+  for (int m : merged_ids) occ.push_back({merged.polys[size_t(m)], merged.convex[size_t(m)] != 0, merged.solid[size_t(m)]});
 }
 
 }  // namespace lambert::formfactor::detail

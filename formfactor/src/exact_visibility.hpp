@@ -30,6 +30,7 @@ ExactScratchPtr make_exact_scratch();
 struct Occluder {
   std::span<const Vec3> poly;
   bool convex = false;
+  int solid = -1;  // >= 0: a face of that closed convex solid (convex_solids), whose faces' union is its silhouette
 };
 
 // F(x -> hidden part of target): x a point with unit normal n; target a planar simple polygon with unit
@@ -72,8 +73,18 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
 struct MergedOccluders {
   std::vector<std::vector<Vec3>> polys;
   std::vector<std::uint8_t> convex;
+  std::vector<int> solid;     // per merged polygon: the convex solid of all the members of its plane, or -1
   std::vector<int> of_patch;  // per patch of the geometry: its merged polygon, or -1 (the patch is used as it is)
+  std::vector<int> solid_of_patch;  // per patch: convex_solids
 };
+
+// Closed convex solids among the occluders: per patch of g, an id shared by the faces of one connected component
+// (patches joined by edges with bit-identical corners) that is closed (every edge in exactly two faces, wound
+// opposite ways) and convex (every corner of the component within 1e-9 * scale of, or on one side of, every face's
+// plane, the same side for all faces); -1 for every other patch. From any point outside such a solid its faces hide
+// exactly its silhouette (a segment that meets the solid crosses its surface at a face), a convex region whose
+// corners are the solid's corners: the hidden part changes its structure only on critical lines (no EEE events).
+std::vector<int> convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 
 // The occluders of the pair (i, j) for exact_hidden_pair, from shaft candidates (OccluderTree::collect): those
