@@ -24,6 +24,7 @@ struct ExactScratch {
   std::vector<Vec3> lifted, cs, ct, pts;
   std::vector<Occluder> kept;
   std::vector<std::array<double, 4>> hull;
+  std::vector<std::array<double, 2>> uv, hull2;  // projected corners and their convex hull (one convex solid)
 };
 
 void ExactScratchDeleter::operator()(ExactScratch* s) const { delete s; }
@@ -160,6 +161,41 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   if (count == 1 && target_convex) return contour_sum(x, n, S.surv[0]);
   for (size_t k = 0; k < count; ++k)
     if (S.surv_convex[k] && covers(x, target, S.surv[k])) return contour_sum(x, n, target);
+  // Every occluder a face of one closed convex solid C (convex_solids), the target convex: a segment from x to the
+  // target that meets C crosses its surface at a face, inside the cone, so the union of the faces' projections is
+  // the projection of C within the cone, a convex region: the convex hull of the clipped faces' projected corners
+  // (each of them a point of C in the cone; the hull lies in the target). No Boolean operation, no snapping.
+  bool one_solid = target_convex && occluders[0].solid >= 0;
+  for (const Occluder& o : occluders) one_solid = one_solid && o.solid == occluders[0].solid;
+  if (one_solid) {
+    S.uv.clear();
+    for (size_t k = 0; k < count; ++k)
+      for (const Vec3& q : S.surv[k]) {
+        const double hq = nt.dot(q) - t0;  // as below: a corner on the plane through x moves far outside
+        const Vec3 y = x + (q - x) * (hx / std::max(hx - hq, 1e-12 * hx));
+        S.uv.push_back({u.dot(y - tc), v.dot(y - tc)});
+      }
+    // Andrew's monotone chain, counter-clockwise in (u, v), collinear corners dropped.
+    std::sort(S.uv.begin(), S.uv.end());
+    const size_t m = S.uv.size();
+    S.hull2.resize(2 * m + 1);
+    size_t h = 0;
+    auto turn = [](const std::array<double, 2>& o, const std::array<double, 2>& a, const std::array<double, 2>& b) {
+      return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    for (size_t k = 0; k < m; ++k) {
+      while (h >= 2 && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
+      S.hull2[h++] = S.uv[k];
+    }
+    for (size_t k = m - 1, lower = h + 1; k-- > 0;) {
+      while (h >= lower && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
+      S.hull2[h++] = S.uv[k];
+    }
+    if (h < 4) return 0;  // fewer than 3 distinct corners (the last repeats the first): no area
+    S.lifted.clear();
+    for (size_t k = 0; k + 1 < h; ++k) S.lifted.push_back(tc + S.hull2[k][0] * u + S.hull2[k][1] * v);
+    return std::abs(signed_contour_sum(x, n, S.lifted)) / (2 * kPi);
+  }
   // Union of the projections on the target's plane (integer coordinates, kSnap per R), intersected with the
   // target when the cone was only its bounding rectangle.
   const double scale = kSnap / R, inv = R / kSnap;

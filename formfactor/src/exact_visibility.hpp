@@ -83,7 +83,8 @@ struct MergedOccluders {
 // opposite ways) and convex (every corner of the component within 1e-9 * scale of, or on one side of, every face's
 // plane, the same side for all faces); -1 for every other patch. From any point outside such a solid its faces hide
 // exactly its silhouette (a segment that meets the solid crosses its surface at a face), a convex region whose
-// corners are the solid's corners: the hidden part changes its structure only on critical lines (no EEE events).
+// corners are the solid's corners: the hidden part changes its structure only on critical lines (no EEE events),
+// and hidden_point_to_polygon takes the convex hull of the projected faces instead of their Boolean union.
 std::vector<int> convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 
