@@ -613,8 +613,9 @@ namespace ff = formfactor;
 
 // The faces of one closed convex solid hide the convex hull of their clipped, projected corners: that shortcut
 // (no Boolean union) against the general path (Clipper's union of the same faces, solid ids removed), for blocks
-// between a point and a square, crossing the square's plane, crossing the point's plane, seen edge-on; and two
-// blocks with a gap between them, which must not be treated as one solid (their hull would cover the gap).
+// between a point and a square, crossing the square's plane, crossing the point's plane, around the point (every
+// face seen from behind: none may be left out); and two blocks with a gap between them, which must not be treated
+// as one solid (their hull would cover the gap).
 // Tolerance 1e-9 of F(x -> square): the general path snaps corners to 2^-29 of the square's size.
 TEST(ExactVisibilityNumerics, ConvexSolidHidesTheHullOfItsProjectedCornersLikeTheUnionOfItsFaces) {
   const Poly t = {Vec3(-1, -1, 1), Vec3(-1, 1, 1), Vec3(1, 1, 1), Vec3(1, -1, 1)};  // facing -z
@@ -632,11 +633,27 @@ TEST(ExactVisibilityNumerics, ConvexSolidHidesTheHullOfItsProjectedCornersLikeTh
       return mesh::shapes::box(c - half, c + half, 1 + trial % 3, false);
     };
     const int nblocks = trial % 2 == 0 ? 1 : 2;
-    for (int b = 0; b < nblocks; ++b) blocks.push_back(random_block());
+    std::vector<Vec3> centre;
+    for (int b = 0; b < nblocks; ++b) {
+      blocks.push_back(random_block());
+      centre.push_back(Vec3::Zero());
+      for (const auto& q : blocks.back())
+        for (const Vec3& c : q) centre.back() += c / (4.0 * double(blocks.back().size()));
+    }
+    if (trial % 10 == 6) {  // x inside the block (every face seen from behind): everything in front of x is hidden
+      blocks[0] = mesh::shapes::box(x - Vec3(0.2, 0.2, 0.3), x + Vec3(0.2, 0.2, 0.3), 1, false);
+      centre[0] = x;
+    }
     std::vector<ff::detail::Occluder> with_ids, without;
     for (int b = 0; b < nblocks; ++b)
       for (const auto& q : blocks[size_t(b)]) {
-        with_ids.push_back({std::span<const Vec3>(q), true, b});
+        ff::detail::Occluder o{std::span<const Vec3>(q), true, b};
+        // The face's plane oriented into the block: faces with x on that side are left out when x is outside.
+        const Vec3 nq = mesh::newell_normal(q).normalized();
+        o.inner = nq.dot(centre[size_t(b)] - q[0]) > 0 ? nq : Vec3(-nq);
+        o.inner_offset = o.inner.dot(q[0]);
+        o.cull = true;
+        with_ids.push_back(o);
         without.push_back({std::span<const Vec3>(q), true, -1});
       }
     const double h = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, with_ids, *scratch);

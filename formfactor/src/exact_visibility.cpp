@@ -142,9 +142,17 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   const double top = t0 + hx * (1 - 1e-12);
   S.planes.push_back({-nt.x(), -nt.y(), -nt.z(), -top});                          // between x and the target
   S.planes.push_back({n.x(), n.y(), n.z(), n.dot(x)});                             // in front of x
+  // Every occluder a face of one closed convex solid C (convex_solids), the target convex: see below. If x is
+  // outside C (in front of one of the faces), a segment from x that meets C enters it through a face facing x: the
+  // faces with x on their inner side are left out.
+  bool one_solid = target_convex && occluders[0].solid >= 0, cull = false;
+  for (const Occluder& o : occluders) one_solid = one_solid && o.solid == occluders[0].solid;
+  if (one_solid)
+    for (const Occluder& o : occluders) cull = cull || (o.cull && o.inner.dot(x) < o.inner_offset);
   // Occluders clipped to the cone.
   size_t count = 0;
   for (const Occluder& o : occluders) {
+    if (cull && o.cull && o.inner.dot(x) >= o.inner_offset) continue;
     S.a.assign(o.poly.begin(), o.poly.end());
     for (const auto& pl : S.planes) {
       clip_keep(S.a, Vec3(pl[0], pl[1], pl[2]), pl[3], S.b);
@@ -161,12 +169,10 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   if (count == 1 && target_convex) return contour_sum(x, n, S.surv[0]);
   for (size_t k = 0; k < count; ++k)
     if (S.surv_convex[k] && covers(x, target, S.surv[k])) return contour_sum(x, n, target);
-  // Every occluder a face of one closed convex solid C (convex_solids), the target convex: a segment from x to the
-  // target that meets C crosses its surface at a face, inside the cone, so the union of the faces' projections is
-  // the projection of C within the cone, a convex region: the convex hull of the clipped faces' projected corners
-  // (each of them a point of C in the cone; the hull lies in the target). No Boolean operation, no snapping.
-  bool one_solid = target_convex && occluders[0].solid >= 0;
-  for (const Occluder& o : occluders) one_solid = one_solid && o.solid == occluders[0].solid;
+  // One convex solid C: a segment from x to the target that meets C crosses its surface at a face, inside the cone,
+  // so the union of the faces' projections is the projection of C within the cone, a convex region: the convex hull
+  // of the clipped faces' projected corners (each of them a point of C in the cone; the hull lies in the target).
+  // No Boolean operation, no snapping.
   if (one_solid) {
     S.uv.clear();
     for (size_t k = 0; k < count; ++k)
@@ -586,7 +592,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // a sample that saw no shadow (or all of it). A residue of 1e-15 from an occluder grazing the target's plane
     // (a wall standing on the floor it borders) counted as "partly hidden" once, so the element stopped being
     // force-refined and a table leg's shadow that its 6 samples missed was never found (storey.stl: row 1.0025).
-    const double whole = contour_sum(p, ns, ct);
+    const double whole = h > 0 ? contour_sum(p, ns, ct) : 0;
     sample_kind = combine(sample_kind, h <= 1e-9 * whole ? 0 : h >= (1 - 1e-9) * whole ? 1 : 2);
     return h;
   };
@@ -913,6 +919,17 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
   out.of_patch.assign(size_t(g.size()), -1);
   if (!(scale > 0)) return out;
   out.solid_of_patch = convex_solids(g, occluders, scale);
+  {  // the centre of each solid: the mean of its faces' centroids, strictly inside it (convex, not flat)
+    std::vector<int> faces;
+    for (int p : occluders) {
+      const int id = out.solid_of_patch[size_t(p)];
+      if (id < 0) continue;
+      if (id >= int(out.solid_centre.size())) out.solid_centre.resize(size_t(id) + 1, Vec3::Zero()), faces.resize(size_t(id) + 1, 0);
+      out.solid_centre[size_t(id)] += g.centroid[size_t(p)];
+      ++faces[size_t(id)];
+    }
+    for (size_t k = 0; k < faces.size(); ++k) out.solid_centre[k] /= double(faces[k]);
+  }
   // Occluders grouped by their unoriented plane (mesh::plane_ids), groups in order of first appearance.
   const std::vector<int> plane = mesh::plane_ids(g, occluders, scale);
   std::vector<std::vector<int>> groups;
@@ -977,6 +994,18 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
   return out;
 }
 
+namespace {
+// The plane of o oriented towards the centre of its solid (strictly inside it), if the centre is off the plane by
+// more than eps (a flat two-sided plate's is not: its faces are never left out).
+void set_inner(Occluder& o, const Vec3& n, const Vec3& centre, double eps) {
+  const double d = n.dot(centre - o.poly[0]);
+  if (!(std::abs(d) > eps)) return;
+  o.inner = d > 0 ? n : Vec3(-n);
+  o.inner_offset = o.inner.dot(o.poly[0]);
+  o.cull = true;
+}
+}  // namespace
+
 void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double scale, std::span<const int> candidates,
                     int i, int j, const MergedOccluders& merged, const std::vector<std::uint8_t>& convex,
                     std::vector<int>& merged_ids, std::vector<Occluder>& occ) {
@@ -991,12 +1020,25 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
   for (int p : candidates) {
     if (coplanar(p, i) || coplanar(p, j)) continue;
     const int m = merged.of_patch.empty() ? -1 : merged.of_patch[size_t(p)];
-    if (m >= 0) merged_ids.push_back(m);
-    else occ.push_back({g.polygon(p), convex[size_t(p)] != 0, merged.solid_of_patch.empty() ? -1 : merged.solid_of_patch[size_t(p)]});
+    if (m >= 0) {
+      merged_ids.push_back(m);
+      continue;
+    }
+    Occluder o{g.polygon(p), convex[size_t(p)] != 0};
+    if (!merged.solid_of_patch.empty() && merged.solid_of_patch[size_t(p)] >= 0) {
+      o.solid = merged.solid_of_patch[size_t(p)];
+      set_inner(o, P.nrm[p], merged.solid_centre[size_t(o.solid)], 1e-9 * scale);
+    }
+    occ.push_back(o);
   }
   std::sort(merged_ids.begin(), merged_ids.end());
   merged_ids.erase(std::unique(merged_ids.begin(), merged_ids.end()), merged_ids.end());
-  for (int m : merged_ids) occ.push_back({merged.polys[size_t(m)], merged.convex[size_t(m)] != 0, merged.solid[size_t(m)]});
+  for (int m : merged_ids) {
+    Occluder o{merged.polys[size_t(m)], merged.convex[size_t(m)] != 0, merged.solid[size_t(m)]};
+    if (o.solid >= 0)
+      set_inner(o, mesh::newell_normal(o.poly).normalized(), merged.solid_centre[size_t(o.solid)], 1e-9 * scale);
+    occ.push_back(o);
+  }
 }
 
 }  // namespace lambert::formfactor::detail

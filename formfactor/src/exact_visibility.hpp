@@ -31,6 +31,10 @@ struct Occluder {
   std::span<const Vec3> poly;
   bool convex = false;
   int solid = -1;  // >= 0: a face of that closed convex solid (convex_solids), whose faces' union is its silhouette
+  // With cull: inner . y >= inner_offset for y on the solid's side of the face's plane (a face x sees from behind).
+  bool cull = false;
+  Vec3 inner = Vec3::Zero();
+  double inner_offset = 0;
 };
 
 // F(x -> hidden part of target): x a point with unit normal n; target a planar simple polygon with unit
@@ -76,6 +80,7 @@ struct MergedOccluders {
   std::vector<int> solid;     // per merged polygon: the convex solid of all the members of its plane, or -1
   std::vector<int> of_patch;  // per patch of the geometry: its merged polygon, or -1 (the patch is used as it is)
   std::vector<int> solid_of_patch;  // per patch: convex_solids
+  std::vector<Vec3> solid_centre;   // per solid id: the mean of its faces' centroids (inside it)
 };
 
 // Closed convex solids among the occluders: per patch of g, an id shared by the faces of one connected component
