@@ -649,12 +649,29 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       }
       for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, g, target, eps, lines);
     };
-    for (const auto& O : occ) {
+    // All occluders faces of one closed convex solid (convex_solids): the hidden part is the silhouette's. A target
+    // corner lines up with a silhouette edge only through the face of that edge it sees from the front (of the
+    // edge's two faces, exactly one faces the corner); the silhouette changes its corners only where x crosses a
+    // face's plane (the lines between two of the solid's own faces are those planes' traces).
+    bool solid_lines = root_count > 0 && pool[0].solid >= 0;
+    for (int k = 0; k < root_count; ++k) solid_lines = solid_lines && pool[size_t(k)].solid == pool[0].solid;
+    for (size_t k = 0; k < occ.size(); ++k) {
+      const auto& O = occ[k];
       if (O.size() < 3) continue;
-      for (const Vec3& v : ct) project(v, O, true);
+      const Occluder& src = pool[k];
+      for (const Vec3& v : ct)
+        if (!(solid_lines && src.cull && src.inner.dot(v) >= src.inner_offset)) project(v, O, true);
       for (const Vec3& w : O) project(w, ct, true);
+      if (solid_lines)
+        for (size_t a = 1; a + 1 < O.size(); ++a) {  // the face's plane: its first corner and a non-collinear pair
+          Critical L;
+          if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
+            lines.push_back(L);
+            break;
+          }
+        }
     }
-    if (root_count <= kMaxInterOccluders)
+    if (!solid_lines && root_count <= kMaxInterOccluders)
       for (size_t a = 0; a < occ.size(); ++a)
         for (size_t b = 0; b < occ.size(); ++b)
           if (a != b && occ[a].size() >= 3 && occ[b].size() >= 3)
@@ -1083,7 +1100,29 @@ PairResult visible_polygon_to_polygon(std::span<const Vec3> Pi, std::span<const 
     }
     if (!in_i && !in_j) kept.push_back(q);
   }
-  const auto occ = detail::as_occluders(kept);
+  auto occ = detail::as_occluders(kept);
+  // Closed convex solids among the occluders, as the assembly finds them (convex_solids).
+  if (occ.size() >= 4) {
+    std::vector<std::vector<Vec3>> polys;
+    for (const auto& o : occ) polys.emplace_back(o.poly.begin(), o.poly.end());
+    const auto g = mesh::PatchGeometry::from_polygons(polys);
+    std::vector<int> all(occ.size());
+    for (size_t k = 0; k < all.size(); ++k) all[k] = int(k);
+    const std::vector<int> id = detail::convex_solids(g, all, scale);
+    std::vector<Vec3> centre;
+    std::vector<int> faces;
+    for (size_t k = 0; k < occ.size(); ++k) {
+      if (id[k] < 0) continue;
+      if (id[k] >= int(centre.size())) centre.resize(size_t(id[k]) + 1, Vec3::Zero()), faces.resize(size_t(id[k]) + 1, 0);
+      centre[size_t(id[k])] += g.centroid[k];
+      ++faces[size_t(id[k])];
+    }
+    for (size_t k = 0; k < occ.size(); ++k) {
+      if (id[k] < 0) continue;
+      occ[k].solid = id[k];
+      detail::set_inner(occ[k], g.normal[k], centre[size_t(id[k])] / double(faces[size_t(id[k])]), 1e-9 * scale);
+    }
+  }
   const bool swap = Aj < Ai;  // integrate from the smaller patch, as polygon_to_polygon does
   const auto s = swap ? Pj : Pi, t = swap ? Pi : Pj;
   const Vec3 &ns = swap ? nj : ni, &nt = swap ? ni : nj;
