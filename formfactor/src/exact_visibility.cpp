@@ -560,6 +560,78 @@ constexpr int kMaxLineOccluders = 64;
 constexpr size_t kMaxLines = 4096;
 constexpr int kMaxInterOccluders = 6;
 
+// The critical lines of the pair (cs -> ct, clipped in front of each other) from its occluders (classify's list for
+// the whole source), appended to `lines`. False (and no lines) above kMaxLineOccluders occluders or kMaxLines lines.
+bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns, double os, const Vec3& nt,
+                       double ot, std::span<const Occluder> pool, double eps, ExactScratch& S, std::vector<Critical>& lines) {
+  const int root_count = int(pool.size());
+  if (root_count > kMaxLineOccluders) return false;
+  {
+    const Vec3 g = average(cs);
+    std::vector<std::vector<Vec3>> occ{size_t(root_count)};
+    for (int k = 0; k < root_count; ++k) {
+      S.a.assign(pool[size_t(k)].poly.begin(), pool[size_t(k)].poly.end());
+      clip_keep(S.a, ns, os, S.b);
+      clip_keep(S.b, nt, ot, occ[size_t(k)]);
+    }
+    auto project = [&](const Vec3& c, std::span<const Vec3> P, bool target) {
+      const size_t m = P.size();
+      if (std::abs(ns.dot(c) - os) <= eps) {
+        // c on the source's plane: x lines up with c and a point of the segment only within the plane, i.e.
+        // on the line through c and a corner that lies on the plane too (a leg's foot and a wall's foot).
+        for (const Vec3& q : P)
+          if (std::abs(ns.dot(q) - os) <= eps && (q - c).norm() > eps) {
+            // The plane through c, q and the source's normal meets the source's plane in the line cq.
+            Critical L;
+            if (critical_line(c, q, Vec3(q + ns * (q - c).norm()), ns, os, g, target, L)) lines.push_back(L);
+          }
+        return;
+      }
+      for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, g, target, eps, lines);
+    };
+    // A face of a closed convex solid (convex_solids) matters only through the solid's silhouette: a target corner
+    // lines up with a silhouette edge only through the face of that edge it sees from the front (of the edge's two
+    // faces, exactly one faces the corner), and the silhouette changes its corners only where x crosses a face's
+    // plane (the traces made for every occluder below).
+    for (size_t k = 0; k < occ.size(); ++k) {
+      const auto& O = occ[k];
+      if (O.size() < 3) continue;
+      const Occluder& src = pool[k];
+      for (const Vec3& v : ct)
+        if (!(src.cull && src.inner.dot(v) >= src.inner_offset)) project(v, O, true);
+      for (const Vec3& w : O) project(w, ct, true);
+      // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
+      // shrinks to a segment there, and a solid's face joins or leaves its silhouette).
+      for (size_t a = 1; a + 1 < O.size(); ++a) {  // the plane: the first corner and a non-collinear pair
+          Critical L;
+          if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
+            lines.push_back(L);
+            break;
+          }
+        }
+    }
+    // A corner of one occluder against an edge of another, for up to kMaxInterOccluders units (a convex solid's
+    // faces are one unit: between them the plane traces above suffice); against a solid's face, only from corners
+    // in front of it (as for the target's corners).
+    auto unit = [&](size_t k) { return pool[k].solid >= 0 ? pool[k].solid : -1 - int(k); };
+    std::vector<int> units;
+    for (size_t k = 0; k < occ.size(); ++k) units.push_back(unit(k));
+    std::sort(units.begin(), units.end());
+    const bool inter = std::unique(units.begin(), units.end()) - units.begin() <= kMaxInterOccluders;
+    if (inter)
+      for (size_t a = 0; a < occ.size(); ++a)
+        for (size_t b = 0; b < occ.size(); ++b)
+          if (unit(a) != unit(b) && occ[a].size() >= 3 && occ[b].size() >= 3)
+            for (const Vec3& w : occ[a])
+              if (!(pool[b].cull && pool[b].inner.dot(w) >= pool[b].inner_offset)) project(w, occ[b], false);
+  }
+  if (lines.size() > kMaxLines) {
+    lines.clear();
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, double area_s, bool s_convex,
@@ -625,60 +697,9 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   // an element no line crosses has a smooth integrand, and there a shadow cannot appear or vanish.
   std::vector<Critical> lines;
   std::vector<int> lpool;  // line lists of the elements: [begin, begin + count) per element
-  bool have_lines = root_count <= kMaxLineOccluders;
-  if (have_lines) {
-    const Vec3 g = average(cs);
-    std::vector<std::vector<Vec3>> occ{size_t(root_count)};
-    for (int k = 0; k < root_count; ++k) {
-      S.a.assign(pool[size_t(k)].poly.begin(), pool[size_t(k)].poly.end());
-      clip_keep(S.a, ns, os, S.b);
-      clip_keep(S.b, nt, ot, occ[size_t(k)]);
-    }
-    auto project = [&](const Vec3& c, std::span<const Vec3> P, bool target) {
-      const size_t m = P.size();
-      if (std::abs(ns.dot(c) - os) <= eps) {
-        // c on the source's plane: x lines up with c and a point of the segment only within the plane, i.e.
-        // on the line through c and a corner that lies on the plane too (a leg's foot and a wall's foot).
-        for (const Vec3& q : P)
-          if (std::abs(ns.dot(q) - os) <= eps && (q - c).norm() > eps) {
-            // The plane through c, q and the source's normal meets the source's plane in the line cq.
-            Critical L;
-            if (critical_line(c, q, Vec3(q + ns * (q - c).norm()), ns, os, g, target, L)) lines.push_back(L);
-          }
-        return;
-      }
-      for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, g, target, eps, lines);
-    };
-    // All occluders faces of one closed convex solid (convex_solids): the hidden part is the silhouette's. A target
-    // corner lines up with a silhouette edge only through the face of that edge it sees from the front (of the
-    // edge's two faces, exactly one faces the corner); the silhouette changes its corners only where x crosses a
-    // face's plane (the lines between two of the solid's own faces are those planes' traces).
-    bool solid_lines = root_count > 0 && pool[0].solid >= 0;
-    for (int k = 0; k < root_count; ++k) solid_lines = solid_lines && pool[size_t(k)].solid == pool[0].solid;
-    for (size_t k = 0; k < occ.size(); ++k) {
-      const auto& O = occ[k];
-      if (O.size() < 3) continue;
-      const Occluder& src = pool[k];
-      for (const Vec3& v : ct)
-        if (!(solid_lines && src.cull && src.inner.dot(v) >= src.inner_offset)) project(v, O, true);
-      for (const Vec3& w : O) project(w, ct, true);
-      if (solid_lines)
-        for (size_t a = 1; a + 1 < O.size(); ++a) {  // the face's plane: its first corner and a non-collinear pair
-          Critical L;
-          if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
-            lines.push_back(L);
-            break;
-          }
-        }
-    }
-    if (!solid_lines && root_count <= kMaxInterOccluders)
-      for (size_t a = 0; a < occ.size(); ++a)
-        for (size_t b = 0; b < occ.size(); ++b)
-          if (a != b && occ[a].size() >= 3 && occ[b].size() >= 3)
-            for (const Vec3& w : occ[a]) project(w, occ[b], false);
-    if (lines.size() > kMaxLines) have_lines = false, lines.clear();
-    for (size_t k = 0; k < lines.size(); ++k) lpool.push_back(int(k));
-  }
+  const bool have_lines =
+      critical_lines_of(cs, ct, ns, os, nt, ot, std::span<const Occluder>(pool.data(), size_t(root_count)), eps, S, lines);
+  for (size_t k = 0; k < lines.size(); ++k) lpool.push_back(int(k));
   const int root_lines = int(lpool.size());
   auto push = [&](Elem e, int parent_begin, int parent_count, int parent_lbegin, int parent_lcount) {
     Leaf l;
@@ -826,6 +847,24 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   res.error = err / area_s;
   res.over_tolerance = err > goal;
   return res;
+}
+
+std::vector<CriticalSegment> pair_critical_lines(std::span<const Vec3> s, const Vec3& ns, std::span<const Vec3> t,
+                                                const Vec3& nt, std::span<const Occluder> candidates, double scale) {
+  std::vector<CriticalSegment> out;
+  const auto S = make_exact_scratch();
+  const double eps = 1e-10 * scale;
+  clip_front(s, nt, nt.dot(t[0]), eps, S->cs);
+  clip_front(t, ns, ns.dot(s[0]), eps, S->ct);
+  if (S->cs.size() < 3 || S->ct.size() < 3 || candidates.empty()) return out;
+  const std::vector<Vec3> cs = S->cs, ct = S->ct;
+  const double os = ns.dot(s[0]), ot = nt.dot(t[0]);
+  std::vector<Occluder> pool;
+  if (classify(cs, ct, ns, nt, os, ot, candidates, eps, *S, pool) != ExactPairResult::kIntegrated) return out;
+  std::vector<Critical> lines;
+  critical_lines_of(cs, ct, ns, os, nt, ot, pool, eps, *S, lines);
+  for (const Critical& L : lines) out.push_back({L.p, L.d, L.t0, L.t1});
+  return out;
 }
 
 namespace {

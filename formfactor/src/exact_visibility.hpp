@@ -69,6 +69,16 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
                                   std::span<const Occluder> candidates, double tol, double scale,
                                   ExactScratch& scratch);
 
+// For tests: the critical lines exact_hidden_pair splits the pair (s -> t) on, as p + u d for u in [t0, t1] on the
+// source's plane (d a unit vector; infinite ends allowed). Empty if the pair is clear, hidden by one occluder, or
+// has too many occluders or lines for them.
+struct CriticalSegment {
+  Vec3 p, d;
+  double t0, t1;
+};
+std::vector<CriticalSegment> pair_critical_lines(std::span<const Vec3> s, const Vec3& ns, std::span<const Vec3> t,
+                                                const Vec3& nt, std::span<const Occluder> candidates, double scale);
+
 // Occluders lying in one plane and touching or overlapping each other (a wall or a block face meshed into a grid,
 // both sides of a two-sided face) block exactly what their union blocks: they are merged into one polygon per
 // connected region of the union (Clipper, in the plane's integer frame: corners move by <= 1e-9 of the region's
