@@ -603,12 +603,12 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
       // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
       // shrinks to a segment there, and a solid's face joins or leaves its silhouette).
       for (size_t a = 1; a + 1 < O.size(); ++a) {  // the plane: the first corner and a non-collinear pair
-          Critical L;
-          if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
-            lines.push_back(L);
-            break;
-          }
+        Critical L;
+        if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
+          lines.push_back(L);
+          break;
         }
+      }
     }
     // A corner of one occluder against an edge of another, for up to kMaxInterOccluders units (a convex solid's
     // faces are one unit: between them the plane traces above suffice); against a solid's face, only from corners
