@@ -489,6 +489,8 @@ TEST(ExactVisibilityAssembly, MeshedBlockHidesLikeTheSameBlockInOnePiece) {
   const auto F1 = ff::assemble(g1, o, &s1).matrix(), F4 = ff::assemble(g4, o, &s4).matrix();
   EXPECT_EQ(s4.occluders_merged, 6 * 16) << "every block quad merged";
   EXPECT_EQ(s4.occluder_regions, 6) << "into one polygon per face";
+  EXPECT_EQ(s4.convex_solids, 1) << "the block is one closed convex solid";
+  EXPECT_EQ(s4.convex_solid_faces, 6 * 16);
   EXPECT_EQ(s1.occluders_merged, 0) << "single quads have no coplanar neighbour";
   const int room = 6 * 2 * 2;  // the room's patches come first in both
   for (int i = 0; i < room; ++i)

@@ -112,6 +112,8 @@ DenseMatrixOperator Assembler::run() {
         merged_ = merge_coplanar_occluders(g_, occ, scale_);
         for (int m : merged_.of_patch) st_.occluders_merged += m >= 0;
         st_.occluder_regions = int(merged_.polys.size());
+        st_.convex_solids = int(merged_.solid_centre.size());
+        for (int id : merged_.solid_of_patch) st_.convex_solid_faces += id >= 0;
       }
     }
   }

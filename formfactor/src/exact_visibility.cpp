@@ -601,8 +601,15 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
         if (!(src.cull && src.inner.dot(v) >= src.inner_offset)) project(v, O, true);
       for (const Vec3& w : O) project(w, ct, true);
       // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
-      // shrinks to a segment there, and a solid's face joins or leaves its silhouette).
-      for (size_t a = 1; a + 1 < O.size(); ++a) {  // the plane: the first corner and a non-collinear pair
+      // shrinks to a segment there, and a solid's face joins or leaves its silhouette). That segment lies in the
+      // occluder's plane: an event only if the target has corners strictly on both sides of it.
+      const Vec3 no = mesh::newell_normal(O).normalized();
+      bool below = false, above = false;
+      for (const Vec3& v : ct) {
+        const double d = no.dot(v - O[0]);
+        below = below || d < -eps, above = above || d > eps;
+      }
+      for (size_t a = 1; below && above && a + 1 < O.size(); ++a) {  // the plane: the first corner and a non-collinear pair
         Critical L;
         if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
           lines.push_back(L);

@@ -25,6 +25,8 @@ void to_json(nlohmann::json& j, const Stats& s) {
   j["exact_points"] = s.exact_points;
   j["occluders_merged"] = s.occluders_merged;
   j["occluder_regions"] = s.occluder_regions;
+  j["convex_solids"] = s.convex_solids;
+  j["convex_solid_faces"] = s.convex_solid_faces;
   j["pairs_by_method"] = s.pairs_by_method;
   j["pairs_reused"] = s.pairs_reused;
   j["pairs_over_tolerance"] = s.pairs_over_tolerance;
