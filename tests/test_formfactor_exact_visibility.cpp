@@ -605,14 +605,6 @@ TEST(ExactVisibilityNumerics, ConvexSolidsAreTheClosedConvexComponentsOnly) {
   EXPECT_GE(merged.solid[0], 0);
 }
 
-}  // namespace
-}  // namespace lambert
-
-namespace lambert {
-namespace {
-
-namespace ff = formfactor;
-
 // The faces of one closed convex solid hide the convex hull of their clipped, projected corners: that shortcut
 // (no Boolean union) against the general path (Clipper's union of the same faces, solid ids removed), for blocks
 // between a point and a square, crossing the square's plane, crossing the point's plane, around the point (every
@@ -667,14 +659,6 @@ TEST(ExactVisibilityNumerics, ConvexSolidHidesTheHullOfItsProjectedCornersLikeTh
   }
 }
 
-}  // namespace
-}  // namespace lambert
-
-namespace lambert {
-namespace {
-
-namespace ff = formfactor;
-
 // A closed block (six faces: one convex solid) between a floor square and a ceiling square, in two positions: the
 // pair's critical lines are then only those of the silhouette (a target corner against the edges of the faces it
 // sees from the front, the block's corners against the target's edges, the traces of the faces' planes), and every
@@ -697,14 +681,6 @@ TEST(ExactVisibilityNumerics, ClosedBlockBetweenTwoSquaresMatchesAnIndependentQu
                                 << r.error_estimate << ", unoccluded " << unocc;
   }
 }
-
-}  // namespace
-}  // namespace lambert
-
-namespace lambert {
-namespace {
-
-namespace ff = formfactor;
 
 // Every kink of the hidden part along a path across the source lies on a critical line of the pair: F_hidden(x) is
 // sampled along straight paths with the general point evaluation (Clipper's union; no lines, no solid), its kinks
