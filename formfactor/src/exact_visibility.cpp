@@ -566,72 +566,70 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
                        double ot, std::span<const Occluder> pool, double eps, ExactScratch& S, std::vector<Critical>& lines) {
   const int root_count = int(pool.size());
   if (root_count > kMaxLineOccluders) return false;
-  {
-    const Vec3 g = average(cs);
-    std::vector<std::vector<Vec3>> occ{size_t(root_count)};
-    for (int k = 0; k < root_count; ++k) {
-      S.a.assign(pool[size_t(k)].poly.begin(), pool[size_t(k)].poly.end());
-      clip_keep(S.a, ns, os, S.b);
-      clip_keep(S.b, nt, ot, occ[size_t(k)]);
-    }
-    auto project = [&](const Vec3& c, std::span<const Vec3> P, bool target) {
-      const size_t m = P.size();
-      if (std::abs(ns.dot(c) - os) <= eps) {
-        // c on the source's plane: x lines up with c and a point of the segment only within the plane, i.e.
-        // on the line through c and a corner that lies on the plane too (a leg's foot and a wall's foot).
-        for (const Vec3& q : P)
-          if (std::abs(ns.dot(q) - os) <= eps && (q - c).norm() > eps) {
-            // The plane through c, q and the source's normal meets the source's plane in the line cq.
-            Critical L;
-            if (critical_line(c, q, Vec3(q + ns * (q - c).norm()), ns, os, g, target, L)) lines.push_back(L);
-          }
-        return;
-      }
-      for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, g, target, eps, lines);
-    };
-    // A face of a closed convex solid (convex_solids) matters only through the solid's silhouette: a target corner
-    // lines up with a silhouette edge only through the face of that edge it sees from the front (of the edge's two
-    // faces, exactly one faces the corner), and the silhouette changes its corners only where x crosses a face's
-    // plane (the traces made for every occluder below).
-    for (size_t k = 0; k < occ.size(); ++k) {
-      const auto& O = occ[k];
-      if (O.size() < 3) continue;
-      const Occluder& src = pool[k];
-      for (const Vec3& v : ct)
-        if (!(src.cull && src.inner.dot(v) >= src.inner_offset)) project(v, O, true);
-      for (const Vec3& w : O) project(w, ct, true);
-      // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
-      // shrinks to a segment there, and a solid's face joins or leaves its silhouette). That segment lies in the
-      // occluder's plane: an event only if the target has corners strictly on both sides of it.
-      const Vec3 no = mesh::newell_normal(O).normalized();
-      bool below = false, above = false;
-      for (const Vec3& v : ct) {
-        const double d = no.dot(v - O[0]);
-        below = below || d < -eps, above = above || d > eps;
-      }
-      for (size_t a = 1; below && above && a + 1 < O.size(); ++a) {  // the plane: the first corner and a non-collinear pair
-        Critical L;
-        if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
-          lines.push_back(L);
-          break;
-        }
-      }
-    }
-    // A corner of one occluder against an edge of another, for up to kMaxInterOccluders units (a convex solid's
-    // faces are one unit: between them the plane traces above suffice); against a solid's face, only from corners
-    // in front of it (as for the target's corners).
-    auto unit = [&](size_t k) { return pool[k].solid >= 0 ? pool[k].solid : -1 - int(k); };
-    std::vector<int> units;
-    for (size_t k = 0; k < occ.size(); ++k) units.push_back(unit(k));
-    std::sort(units.begin(), units.end());
-    const bool inter = std::unique(units.begin(), units.end()) - units.begin() <= kMaxInterOccluders;
-    if (inter)
-      for (size_t a = 0; a < occ.size(); ++a)
-        for (size_t b = 0; b < occ.size(); ++b)
-          if (unit(a) != unit(b) && occ[a].size() >= 3 && occ[b].size() >= 3)
-            for (const Vec3& w : occ[a])
-              if (!(pool[b].cull && pool[b].inner.dot(w) >= pool[b].inner_offset)) project(w, occ[b], false);
+  const Vec3 g = average(cs);
+  std::vector<std::vector<Vec3>> occ{size_t(root_count)};
+  for (int k = 0; k < root_count; ++k) {
+    S.a.assign(pool[size_t(k)].poly.begin(), pool[size_t(k)].poly.end());
+    clip_keep(S.a, ns, os, S.b);
+    clip_keep(S.b, nt, ot, occ[size_t(k)]);
   }
+  auto project = [&](const Vec3& c, std::span<const Vec3> P, bool target) {
+    const size_t m = P.size();
+    if (std::abs(ns.dot(c) - os) <= eps) {
+      // c on the source's plane: x lines up with c and a point of the segment only within the plane, i.e.
+      // on the line through c and a corner that lies on the plane too (a leg's foot and a wall's foot).
+      for (const Vec3& q : P)
+        if (std::abs(ns.dot(q) - os) <= eps && (q - c).norm() > eps) {
+          // The plane through c, q and the source's normal meets the source's plane in the line cq.
+          Critical L;
+          if (critical_line(c, q, Vec3(q + ns * (q - c).norm()), ns, os, g, target, L)) lines.push_back(L);
+        }
+      return;
+    }
+    for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, g, target, eps, lines);
+  };
+  // A face of a closed convex solid (convex_solids) matters only through the solid's silhouette: a target corner
+  // lines up with a silhouette edge only through the face of that edge it sees from the front (of the edge's two
+  // faces, exactly one faces the corner), and the silhouette changes its corners only where x crosses a face's
+  // plane (the traces made for every occluder below).
+  for (size_t k = 0; k < occ.size(); ++k) {
+    const auto& O = occ[k];
+    if (O.size() < 3) continue;
+    const Occluder& src = pool[k];
+    for (const Vec3& v : ct)
+      if (!(src.cull && src.inner.dot(v) >= src.inner_offset)) project(v, O, true);
+    for (const Vec3& w : O) project(w, ct, true);
+    // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
+    // shrinks to a segment there, and a solid's face joins or leaves its silhouette). That segment lies in the
+    // occluder's plane: an event only if the target has corners strictly on both sides of it.
+    const Vec3 no = mesh::newell_normal(O).normalized();
+    bool below = false, above = false;
+    for (const Vec3& v : ct) {
+      const double d = no.dot(v - O[0]);
+      below = below || d < -eps, above = above || d > eps;
+    }
+    for (size_t a = 1; below && above && a + 1 < O.size(); ++a) {  // the plane: the first corner and a non-collinear pair
+      Critical L;
+      if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
+        lines.push_back(L);
+        break;
+      }
+    }
+  }
+  // A corner of one occluder against an edge of another, for up to kMaxInterOccluders units (a convex solid's
+  // faces are one unit: between them the plane traces above suffice); against a solid's face, only from corners
+  // in front of it (as for the target's corners).
+  auto unit = [&](size_t k) { return pool[k].solid >= 0 ? pool[k].solid : -1 - int(k); };
+  std::vector<int> units;
+  for (size_t k = 0; k < occ.size(); ++k) units.push_back(unit(k));
+  std::sort(units.begin(), units.end());
+  const bool inter = std::unique(units.begin(), units.end()) - units.begin() <= kMaxInterOccluders;
+  if (inter)
+    for (size_t a = 0; a < occ.size(); ++a)
+      for (size_t b = 0; b < occ.size(); ++b)
+        if (unit(a) != unit(b) && occ[a].size() >= 3 && occ[b].size() >= 3)
+          for (const Vec3& w : occ[a])
+            if (!(pool[b].cull && pool[b].inner.dot(w) >= pool[b].inner_offset)) project(w, occ[b], false);
   if (lines.size() > kMaxLines) {
     lines.clear();
     return false;
@@ -976,23 +974,30 @@ std::vector<int> convex_solids(const mesh::PatchGeometry& g, const std::vector<i
   return solid;
 }
 
+namespace {
+// The centre of each solid of convex_solids: the mean of its faces' centroids, strictly inside it (convex, not flat).
+std::vector<Vec3> solid_centres(const mesh::PatchGeometry& g, const std::vector<int>& solid_of_patch) {
+  std::vector<Vec3> centre;
+  std::vector<int> faces;
+  for (size_t p = 0; p < solid_of_patch.size(); ++p) {
+    const int id = solid_of_patch[p];
+    if (id < 0) continue;
+    if (id >= int(centre.size())) centre.resize(size_t(id) + 1, Vec3::Zero()), faces.resize(size_t(id) + 1, 0);
+    centre[size_t(id)] += g.centroid[p];
+    ++faces[size_t(id)];
+  }
+  for (size_t k = 0; k < faces.size(); ++k) centre[k] /= double(faces[k]);
+  return centre;
+}
+}  // namespace
+
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders,
                                          double scale) {
   MergedOccluders out;
   out.of_patch.assign(size_t(g.size()), -1);
   if (!(scale > 0)) return out;
   out.solid_of_patch = convex_solids(g, occluders, scale);
-  {  // the centre of each solid: the mean of its faces' centroids, strictly inside it (convex, not flat)
-    std::vector<int> faces;
-    for (int p : occluders) {
-      const int id = out.solid_of_patch[size_t(p)];
-      if (id < 0) continue;
-      if (id >= int(out.solid_centre.size())) out.solid_centre.resize(size_t(id) + 1, Vec3::Zero()), faces.resize(size_t(id) + 1, 0);
-      out.solid_centre[size_t(id)] += g.centroid[size_t(p)];
-      ++faces[size_t(id)];
-    }
-    for (size_t k = 0; k < faces.size(); ++k) out.solid_centre[k] /= double(faces[k]);
-  }
+  out.solid_centre = solid_centres(g, out.solid_of_patch);
   // Occluders grouped by their unoriented plane (mesh::plane_ids), groups in order of first appearance.
   const std::vector<int> plane = mesh::plane_ids(g, occluders, scale);
   std::vector<std::vector<int>> groups;
@@ -1155,18 +1160,11 @@ PairResult visible_polygon_to_polygon(std::span<const Vec3> Pi, std::span<const 
     std::vector<int> all(occ.size());
     for (size_t k = 0; k < all.size(); ++k) all[k] = int(k);
     const std::vector<int> id = detail::convex_solids(g, all, scale);
-    std::vector<Vec3> centre;
-    std::vector<int> faces;
-    for (size_t k = 0; k < occ.size(); ++k) {
-      if (id[k] < 0) continue;
-      if (id[k] >= int(centre.size())) centre.resize(size_t(id[k]) + 1, Vec3::Zero()), faces.resize(size_t(id[k]) + 1, 0);
-      centre[size_t(id[k])] += g.centroid[k];
-      ++faces[size_t(id[k])];
-    }
+    const std::vector<Vec3> centre = detail::solid_centres(g, id);
     for (size_t k = 0; k < occ.size(); ++k) {
       if (id[k] < 0) continue;
       occ[k].solid = id[k];
-      detail::set_inner(occ[k], g.normal[k], centre[size_t(id[k])] / double(faces[size_t(id[k])]), 1e-9 * scale);
+      detail::set_inner(occ[k], g.normal[k], centre[size_t(id[k])], 1e-9 * scale);
     }
   }
   const bool swap = Aj < Ai;  // integrate from the smaller patch, as polygon_to_polygon does
