@@ -768,5 +768,38 @@ TEST(ExactVisibilityNumerics, EveryKinkOfTheHiddenPartLiesOnACriticalLine) {
   }
 }
 
+
+// A corner of one occluder lining up with an edge of another changes the hidden part only where that line of sight
+// meets the target. Two plates far apart on opposite sides of a small target: every such line misses it, so the pair
+// has exactly the lines of each plate alone (their corners and edges against the target's, the traces of their
+// planes). Moved so that the two plates overlap in the target's view, the pair gains lines between them.
+TEST(ExactVisibilityNumerics, LinesBetweenTwoOccludersOnlyWhereTheirLineOfSightMeetsTheTarget) {
+  const Poly s = {Vec3(-5, -5, 0), Vec3(5, -5, 0), Vec3(5, 5, 0), Vec3(-5, 5, 0)};                  // faces +z
+  const Poly t = {Vec3(-0.5, -0.5, 10), Vec3(-0.5, 0.5, 10), Vec3(0.5, 0.5, 10), Vec3(0.5, -0.5, 10)};  // faces -z
+  const Vec3 ns(0, 0, 1), nt(0, 0, -1);
+  auto plate = [](double x, double z, double w) {
+    return Poly{Vec3(x - w, -w, z), Vec3(x + w, -w, z), Vec3(x + w, w, z), Vec3(x - w, w, z)};
+  };
+  auto count = [&](const std::vector<Poly>& plates) {
+    std::vector<ff::detail::Occluder> occ;
+    for (const Poly& q : plates) occ.push_back({std::span<const Vec3>(q), true});
+    return ff::detail::pair_critical_lines(s, ns, t, nt, occ, 10.0).size();
+  };
+  {
+    // Through a corner of A (x ~ -2, z = 3) and an edge of B (x ~ 2, z = 6) the line reaches z = 10 near x = 6.
+    const Poly A = plate(-2, 3, 0.3), B = plate(2, 6, 0.3);
+    const size_t a = count({A}), b = count({B}), ab = count({A, B});
+    ASSERT_GT(a, 0u);
+    ASSERT_GT(b, 0u);
+    EXPECT_EQ(ab, a + b) << "plates apart: " << a << " + " << b << " lines alone, " << ab << " together";
+  }
+  {
+    // Both plates near the axis: lines of sight through a corner of one and an edge of the other meet the target.
+    const Poly A = plate(-0.1, 3, 0.3), B = plate(0.1, 6, 0.3);
+    const size_t a = count({A}), b = count({B}), ab = count({A, B});
+    EXPECT_GT(ab, a + b) << "plates in view of each other: " << a << " + " << b << " lines alone, " << ab << " together";
+  }
+}
+
 }  // namespace
 }  // namespace lambert

@@ -553,6 +553,57 @@ int split_along(const std::array<Vec3, 4>& v, const Critical& c, std::array<Elem
   return out;
 }
 
+// True if the polygon p (normal n) is convex with corners turning counter-clockwise about n.
+bool convex_ring(std::span<const Vec3> p, const Vec3& n) {
+  const size_t m = p.size();
+  for (size_t k = 0; k < m; ++k)
+    if ((p[(k + 1) % m] - p[k]).cross(p[(k + 2) % m] - p[(k + 1) % m]).dot(n) < 0) return false;
+  return m >= 3;
+}
+
+// The part [lo, hi] (parameters of q0 + mu (q1 - q0), mu in [0, 1]) of the segment whose line through c meets the
+// convex polygon t (counter-clockwise about nt): the segment inside the double cone from c through t, whose two
+// nappes are the intersections of the half-spaces through c and t's edges (inner, or all outer). Conservative:
+// the hull of the two nappes' intervals. False if no part of the segment is inside.
+bool sight_through(const Vec3& c, const Vec3& q0, const Vec3& q1, std::span<const Vec3> t, double& lo, double& hi) {
+  const size_t m = t.size();
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& q : t) centre += q;
+  centre /= double(m);
+  double lo_in = 0, hi_in = 1, lo_out = 0, hi_out = 1;  // the forward and backward nappes
+  // Scale-free slack: a corner on a cone face (within rounding) counts as inside.
+  const double slack = 1e-12;
+  for (size_t k = 0; k < m; ++k) {
+    // Inner normal of the plane through c and the edge t_k t_k+1: towards the target's interior.
+    const Vec3 a = t[k] - c, b = t[(k + 1) % m] - c;
+    Vec3 h = a.cross(b);
+    const double hl = h.norm();
+    if (!(hl > 0)) return lo = 0, hi = 1, true;  // c on the target's plane: no cone, keep the whole edge
+    h /= hl;
+    if (h.dot(centre - c) < 0) h = -h;  // the target's side positive
+    const double f0 = h.dot(q0 - c), f1 = h.dot(q1 - c);
+    const double tol = slack * ((q0 - c).norm() + (q1 - c).norm());
+    // f(mu) = f0 + mu (f1 - f0) >= -tol (forward nappe), <= tol (backward nappe).
+    auto cut = [&](double g0, double g1, double& l, double& u) {
+      if (g0 >= -tol && g1 >= -tol) return;
+      if (g0 < -tol && g1 < -tol) {
+        l = 1, u = 0;
+        return;
+      }
+      const double mu = (-tol - g0) / (g1 - g0);
+      if (g0 < -tol) l = std::max(l, mu);
+      else u = std::min(u, mu);
+    };
+    cut(f0, f1, lo_in, hi_in);
+    cut(-f0, -f1, lo_out, hi_out);
+  }
+  const bool in = lo_in <= hi_in, out = lo_out <= hi_out;
+  if (!in && !out) return false;
+  lo = std::min(in ? lo_in : 1.0, out ? lo_out : 1.0);
+  hi = std::max(in ? hi_in : 0.0, out ? hi_out : 0.0);
+  return true;
+}
+
 // Critical lines are generated only for pairs with at most this many occluders and lines (those between two
 // occluders for at most kMaxInterOccluders: they grow as the square); beyond, the adaptive rule alone resolves
 // the kinks. storey.stl: pairs at the point cap 557 (no lines) -> 181 (lines up to 24 occluders) -> 82 (64).
@@ -624,12 +675,27 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
   for (size_t k = 0; k < occ.size(); ++k) units.push_back(unit(k));
   std::sort(units.begin(), units.end());
   const bool inter = std::unique(units.begin(), units.end()) - units.begin() <= kMaxInterOccluders;
+  // Such an event changes the hidden part only if the line of sight through the corner and the edge meets the
+  // target: each edge is cut to the part inside the double cone from the corner through the (convex) target.
+  const bool cone = convex_ring(ct, nt);
   if (inter)
     for (size_t a = 0; a < occ.size(); ++a)
       for (size_t b = 0; b < occ.size(); ++b)
         if (unit(a) != unit(b) && occ[a].size() >= 3 && occ[b].size() >= 3)
-          for (const Vec3& w : occ[a])
-            if (!(pool[b].cull && pool[b].inner.dot(w) >= pool[b].inner_offset)) project(w, occ[b], false);
+          for (const Vec3& w : occ[a]) {
+            if (pool[b].cull && pool[b].inner.dot(w) >= pool[b].inner_offset) continue;
+            if (!cone || std::abs(ns.dot(w) - os) <= eps) {
+              project(w, occ[b], false);
+              continue;
+            }
+            const std::vector<Vec3>& B = occ[b];
+            for (size_t k = 0; k < B.size(); ++k) {
+              double lo, hi;
+              if (!sight_through(w, B[k], B[(k + 1) % B.size()], ct, lo, hi)) continue;
+              const Vec3 e = B[(k + 1) % B.size()] - B[k];
+              project_critical(w, B[k] + lo * e, B[k] + hi * e, ns, os, g, false, eps, lines);
+            }
+          }
   if (lines.size() > kMaxLines) {
     lines.clear();
     return false;
