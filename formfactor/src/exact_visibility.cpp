@@ -282,6 +282,7 @@ struct Leaf {
   std::array<Elem, 4> kids;  // bisections: pairs (kids[2d], kids[2d+1]) for direction d (0: across s, 1: across t);
                              // or the 2-3 pieces of a split along a critical line
   int first = 0, nkids = 2;  // the children the leaf is refined into: kids[first, first + nkids)
+  bool lazy = false;         // split along a line above kLineForcedArea: no rule evaluated yet (value unknown)
   int occ_begin = 0, occ_count = 0;    // the element's occluders (in the pair's pool)
   int line_begin = 0, line_count = 0;  // the critical lines crossing it (in the pair's line pool)
   double value = 0, err = 0;  // value of the best bisection; max over directions of |Q - bisection|
@@ -760,6 +761,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   };
   std::priority_queue<Leaf> heap;
   double total_err = 0;
+  long long lazy_splits = 0;  // counted against the point cap as the 9 points each would have cost
   // An element is classified against its parent's occluders first: one no occluder reaches contributes 0 with
   // no point evaluated; one whose samples all see no shadow although an occluder reaches it keeps being refined
   // (error = its unoccluded contribution), so a shadow smaller than the sample spacing is never missed.
@@ -781,8 +783,6 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     l.occ_count = int(pool.size()) - l.occ_begin;
     if (outcome == ExactPairResult::kClear) return;  // F_hidden = 0 on e, exactly
     cur_begin = l.occ_begin, cur_count = l.occ_count;
-    if (!e.has_Q) rule(e);
-    l.e = e;
     // The critical lines through e; the one nearest its centre splits it.
     l.line_begin = int(lpool.size());
     int pick = -1;
@@ -799,15 +799,28 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     const double A = 0.5 * std::abs((e.v[2] - e.v[0]).cross(e.v[3] - e.v[1]).dot(ns));
     if (pick >= 0) l.nkids = split_along(e.v, lines[size_t(pick)], l.kids);
     if (pick >= 0 && l.nkids == 0) pick = -1;  // the line grazes a corner: bisect instead
+    // Until no line crosses an element its rules can agree while all of them miss a kink or a sliver of shadow
+    // between their samples (a block's side and bottom: the root rule and its split agreed to 1e-12 and were
+    // both 2 % off): above kLineForcedArea its error is bounded by its unoccluded contribution, and it is split on.
+    // Its rules are not evaluated then (their values would not change that): only if it is still a leaf at the end
+    // (finish_lazy below).
+    l.lazy = pick >= 0 && A > area_s * kLineForcedArea;
+    if (l.lazy) {
+      l.first = 0;
+      l.e = e;
+      l.err = A * contour_sum(bilinear(e.v, 0.5, 0.5), ns, ct);
+      ++lazy_splits;
+      total_err += l.err;
+      heap.push(l);
+      return;
+    }
+    if (!e.has_Q) rule(e);
+    l.e = e;
     if (pick >= 0) {
       l.first = 0;
       l.value = 0;
       for (int k = 0; k < l.nkids; ++k) rule(l.kids[size_t(k)]), l.value += l.kids[size_t(k)].Q;
-      // Until no line crosses an element its rules can agree while all of them miss a kink or a sliver of shadow
-      // between their samples (a block's side and bottom: the root rule and its split agreed to 1e-12 and were
-      // both 2 % off): the error is bounded by the element's unoccluded contribution, so it is split on.
       l.err = std::abs(e.Q - l.value);
-      if (A > area_s * kLineForcedArea) l.err = std::max(l.err, A * contour_sum(bilinear(e.v, 0.5, 0.5), ns, ct));
     } else {
       {
         const Vec3 ms0 = bilinear(e.v, 0.5, 0), ms1 = bilinear(e.v, 0.5, 1);  // across s
@@ -901,7 +914,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   }
   constexpr long long kMaxPoints = 1 << 14;
   const double goal = tol * area_s;
-  while (total_err > goal && res.points < kMaxPoints && !heap.empty()) {
+  while (total_err > goal && res.points + 9 * lazy_splits < kMaxPoints && !heap.empty()) {
     const Leaf top = heap.top();
     heap.pop();
     total_err -= top.err;
@@ -910,9 +923,17 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   }
   double H = 0, err = 0;
   while (!heap.empty()) {
-    H += heap.top().value;
-    err += heap.top().err;
+    Leaf l = heap.top();
     heap.pop();
+    if (l.lazy) {  // its value, and the change its split makes (within its bound unless the bound was too low)
+      cur_begin = l.occ_begin, cur_count = l.occ_count;
+      rule(l.e);
+      l.value = 0;
+      for (int k = 0; k < l.nkids; ++k) rule(l.kids[size_t(k)]), l.value += l.kids[size_t(k)].Q;
+      l.err = std::max(l.err, std::abs(l.e.Q - l.value));
+    }
+    H += l.value;
+    err += l.err;
   }
   res.H = H / area_s;
   res.error = err / area_s;
