@@ -265,27 +265,29 @@ double visible_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Ve
 
 namespace {
 
-// Elements of the adaptive outer rule: bilinear quads (corners v0..v3; a triangle enters as three quads). A leaf
-// holds its own rule's value Q and the values of its two candidate bisections (across s or across t); it is
-// refined by the bisection that changes Q most. Bisection (not quartering) lets
-// elements become thin along a straight penumbra kink, so a kink parallel to a source edge (the common case
+// Elements of the adaptive outer rule: bilinear quads (corners v0..v3; a triangle enters as three quads). Each
+// carries its own embedded rule (Genz & Malik 1980, degree 7 with a degree-5 rule on the same 17 points, as in
+// adaptive cubature codes such as HCubature): the value is the degree-7 rule, the error estimate the two rules'
+// difference, and the fourth differences along s and t pick the direction of a bisection. Bisection (not quartering)
+// lets elements become thin along a straight penumbra kink, so a kink parallel to a source edge (the common case
 // in architecture) costs O(log 1/tol) elements instead of O(1/h).
 struct Elem {
   std::array<Vec3, 4> v;
-  double Q = 0;  // the element's own rule applied to F_hidden
+  double Q = 0;    // the element's degree-7 rule applied to F_hidden
+  double E = 0;    // |degree-7 - degree-5|
+  int dir = -1;    // bisection across s (0) or t (1) by the larger fourth difference; -1: no preference
   bool has_Q = false;
   int kind = -1;  // what its samples saw: 0 nothing hidden, 1 the whole target hidden, 2 partly (or mixed)
 };
 int combine(int a, int b) { return a < 0 ? b : b < 0 ? a : a == b ? a : 2; }
 struct Leaf {
   Elem e;
-  std::array<Elem, 4> kids;  // bisections: pairs (kids[2d], kids[2d+1]) for direction d (0: across s, 1: across t);
-                             // or the 2-3 pieces of a split along a critical line
-  int first = 0, nkids = 2;  // the children the leaf is refined into: kids[first, first + nkids)
+  std::array<Elem, 3> kids;  // the halves of its bisection, or the 2-3 pieces of a split along a critical line
+  int nkids = 2;
   bool lazy = false;         // split along a line above kLineForcedArea: no rule evaluated yet (value unknown)
   int occ_begin = 0, occ_count = 0;    // the element's occluders (in the pair's pool)
   int line_begin = 0, line_count = 0;  // the critical lines crossing it (in the pair's line pool)
-  double value = 0, err = 0;  // value of the best bisection; max over directions of |Q - bisection|
+  double value = 0, err = 0;  // the element's rule and its error estimate (or bound)
   bool operator<(const Leaf& o) const { return err < o.err; }
 };
 
@@ -519,7 +521,7 @@ bool crosses(const Critical& c, const std::array<Vec3, 4>& v, const Vec3& ns, do
 // the line does not cut the element into two proper pieces (the caller bisects instead). A corner within 1e-12 of
 // the element's width from the line lies on it: it goes to both pieces and no crossing is made next to it (a line
 // through a corner within rounding once made crossings on both of its edges and lost the element's area).
-int split_along(const std::array<Vec3, 4>& v, const Critical& c, std::array<Elem, 4>& kids) {
+int split_along(const std::array<Vec3, 4>& v, const Critical& c, std::array<Elem, 3>& kids) {
   std::array<Vec3, 4> p;
   const int n = corners_of(v, p);
   if (n < 3) return 0;
@@ -740,28 +742,35 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     sample_kind = combine(sample_kind, h <= 1e-9 * whole ? 0 : h >= (1 - 1e-9) * whole ? 1 : 2);
     return h;
   };
+  // Genz-Malik on the unit square of (s, t): the centre, (+-l2, 0), (0, +-l2), (+-l3, 0), (0, +-l3), (+-l4, +-l4),
+  // (+-l5, +-l5) in half-widths; weights normalised to sum 1 (the element's integral is their sum times f J).
   auto rule = [&](Elem& e) {
-    double q = 0;
     sample_kind = -1;
-    {
-      constexpr double x3[3] = {0.11270166537925831148, 0.5, 0.88729833462074168852};
-      constexpr double w3[3] = {5.0 / 18, 8.0 / 18, 5.0 / 18};
-      for (int ia = 0; ia < 3; ++ia)
-        for (int ib = 0; ib < 3; ++ib) {
-          const double a = x3[ia], b = x3[ib];
-          const Vec3 ds = (1 - b) * (e.v[1] - e.v[0]) + b * (e.v[2] - e.v[3]);
-          const Vec3 dt = (1 - a) * (e.v[3] - e.v[0]) + a * (e.v[2] - e.v[1]);
-          const double J = std::abs(ds.cross(dt).dot(ns));
-          q += w3[ia] * w3[ib] * J * f(bilinear(e.v, a, b));
-        }
-    }
-    e.Q = q;
+    auto g = [&](double a, double b) {
+      const Vec3 ds = (1 - b) * (e.v[1] - e.v[0]) + b * (e.v[2] - e.v[3]);
+      const Vec3 dt = (1 - a) * (e.v[3] - e.v[0]) + a * (e.v[2] - e.v[1]);
+      return std::abs(ds.cross(dt).dot(ns)) * f(bilinear(e.v, a, b));
+    };
+    constexpr double l2 = 0.35856858280031809199 / 2, l3 = 0.94868329805051379960 / 2, l4 = l3,
+                     l5 = 0.68824720161168529772 / 2;  // sqrt(9/70), sqrt(9/10), sqrt(9/10), sqrt(9/19), halved
+    const double c = g(0.5, 0.5);
+    const double s2a = g(0.5 - l2, 0.5) + g(0.5 + l2, 0.5), s2b = g(0.5, 0.5 - l2) + g(0.5, 0.5 + l2);
+    const double s3a = g(0.5 - l3, 0.5) + g(0.5 + l3, 0.5), s3b = g(0.5, 0.5 - l3) + g(0.5, 0.5 + l3);
+    const double s4 = g(0.5 - l4, 0.5 - l4) + g(0.5 + l4, 0.5 - l4) + g(0.5 + l4, 0.5 + l4) + g(0.5 - l4, 0.5 + l4);
+    const double s5 = g(0.5 - l5, 0.5 - l5) + g(0.5 + l5, 0.5 - l5) + g(0.5 + l5, 0.5 + l5) + g(0.5 - l5, 0.5 + l5);
+    const double q7 = (-3816.0 * c + 2940.0 * (s2a + s2b) + 1020.0 * (s3a + s3b) + 200.0 * s4 + 6859.0 / 4 * s5) / 19683.0;
+    const double q5 = (-1942.0 * c + 735.0 * (s2a + s2b) + 65.0 * (s3a + s3b) + 50.0 * s4) / 1458.0;
+    // Fourth differences (l2 / l3)^2 = 1/7.
+    const double da = std::abs(s2a - 2 * c - (s3a - 2 * c) / 7), db = std::abs(s2b - 2 * c - (s3b - 2 * c) / 7);
+    e.Q = q7;
+    e.E = std::abs(q7 - q5);
+    e.dir = da > db ? 0 : db > da ? 1 : -1;
     e.has_Q = true;
     e.kind = sample_kind;
   };
   std::priority_queue<Leaf> heap;
   double total_err = 0;
-  long long lazy_splits = 0;  // counted against the point cap as the 9 points each would have cost
+  long long lazy_splits = 0;  // counted against the point cap as the 17 points each would have cost
   // An element is classified against its parent's occluders first: one no occluder reaches contributes 0 with
   // no point evaluated; one whose samples all see no shadow although an occluder reaches it keeps being refined
   // (error = its unoccluded contribution), so a shadow smaller than the sample spacing is never missed.
@@ -806,7 +815,6 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // (finish_lazy below).
     l.lazy = pick >= 0 && A > area_s * kLineForcedArea;
     if (l.lazy) {
-      l.first = 0;
       l.e = e;
       l.err = A * contour_sum(bilinear(e.v, 0.5, 0.5), ns, ct);
       ++lazy_splits;
@@ -816,42 +824,28 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     }
     if (!e.has_Q) rule(e);
     l.e = e;
-    if (pick >= 0) {
-      l.first = 0;
-      l.value = 0;
-      for (int k = 0; k < l.nkids; ++k) rule(l.kids[size_t(k)]), l.value += l.kids[size_t(k)].Q;
-      l.err = std::abs(e.Q - l.value);
-    } else {
-      {
-        const Vec3 ms0 = bilinear(e.v, 0.5, 0), ms1 = bilinear(e.v, 0.5, 1);  // across s
-        const Vec3 mt0 = bilinear(e.v, 0, 0.5), mt1 = bilinear(e.v, 1, 0.5);  // across t
-        l.kids[0].v = {e.v[0], ms0, ms1, e.v[3]};
-        l.kids[1].v = {ms0, e.v[1], e.v[2], ms1};
-        l.kids[2].v = {e.v[0], e.v[1], mt1, mt0};
-        l.kids[3].v = {mt0, mt1, e.v[2], e.v[3]};
+    l.value = e.Q;
+    l.err = e.E;
+    if (pick < 0) {
+      // Bisection across the direction of the larger fourth difference; with none (the samples carry no
+      // information), across the longer pair of sides.
+      int d = e.dir;
+      if (d < 0)
+        d = (e.v[1] - e.v[0]).norm() + (e.v[2] - e.v[3]).norm() >= (e.v[3] - e.v[0]).norm() + (e.v[2] - e.v[1]).norm()
+                ? 0
+                : 1;
+      if (d == 0) {
+        const Vec3 m0 = bilinear(e.v, 0.5, 0), m1 = bilinear(e.v, 0.5, 1);
+        l.kids[0].v = {e.v[0], m0, m1, e.v[3]};
+        l.kids[1].v = {m0, e.v[1], e.v[2], m1};
+      } else {
+        const Vec3 m0 = bilinear(e.v, 0, 0.5), m1 = bilinear(e.v, 1, 0.5);
+        l.kids[0].v = {e.v[0], e.v[1], m1, m0};
+        l.kids[1].v = {m0, m1, e.v[2], e.v[3]};
       }
-      double best = -1;
-      int bd = 0;
-      for (int d = 0; d < 2; ++d) {
-        for (int k = 0; k < 2; ++k) rule(l.kids[size_t(2 * d + k)]);
-        const double v = l.kids[size_t(2 * d)].Q + l.kids[size_t(2 * d + 1)].Q, change = std::abs(e.Q - v);
-        if (change > best) best = change, bd = d, l.value = v;
-        l.err = std::max(l.err, change);
-      }
-      if (!(best > 0)) {  // no direction changes anything: bisect the longest side (the samples carry no information)
-        double longest = -1;
-        for (int d = 0; d < 2; ++d) {
-          const double len = d == 0 ? (e.v[1] - e.v[0]).norm() + (e.v[2] - e.v[3]).norm()
-                                    : (e.v[3] - e.v[0]).norm() + (e.v[2] - e.v[1]).norm();
-          if (len > longest)
-            longest = len, bd = d, l.value = l.kids[size_t(2 * d)].Q + l.kids[size_t(2 * d + 1)].Q;
-        }
-      }
-      l.first = 2 * bd;
       l.nkids = 2;
     }
-    int kind = e.kind;
-    for (int k = 0; k < (pick >= 0 ? l.nkids : 4); ++k) kind = combine(kind, l.kids[size_t(k)].kind);
+    const int kind = e.kind;
     // Every sample saw nothing hidden, or the whole target hidden, although the element is neither provably
     // clear nor provably hidden: a shadow edge (or a gap between shadows) may pass between the samples. With
     // critical lines, an element no line crosses keeps one combinatorial structure: if its samples saw nothing
@@ -914,23 +908,22 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   }
   constexpr long long kMaxPoints = 1 << 14;
   const double goal = tol * area_s;
-  while (total_err > goal && res.points + 9 * lazy_splits < kMaxPoints && !heap.empty()) {
+  while (total_err > goal && res.points + 17 * lazy_splits < kMaxPoints && !heap.empty()) {
     const Leaf top = heap.top();
     heap.pop();
     total_err -= top.err;
     for (int k = 0; k < top.nkids; ++k)
-      push(top.kids[size_t(top.first + k)], top.occ_begin, top.occ_count, top.line_begin, top.line_count);
+      push(top.kids[size_t(k)], top.occ_begin, top.occ_count, top.line_begin, top.line_count);
   }
   double H = 0, err = 0;
   while (!heap.empty()) {
     Leaf l = heap.top();
     heap.pop();
-    if (l.lazy) {  // its value, and the change its split makes (within its bound unless the bound was too low)
+    if (l.lazy) {  // its value; its error is its bound unless its rule's own estimate is larger
       cur_begin = l.occ_begin, cur_count = l.occ_count;
       rule(l.e);
-      l.value = 0;
-      for (int k = 0; k < l.nkids; ++k) rule(l.kids[size_t(k)]), l.value += l.kids[size_t(k)].Q;
-      l.err = std::max(l.err, std::abs(l.e.Q - l.value));
+      l.value = l.e.Q;
+      l.err = std::max(l.err, l.e.E);
     }
     H += l.value;
     err += l.err;
