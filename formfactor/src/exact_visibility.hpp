@@ -3,7 +3,7 @@
 // polygon P, the occluders between x and P are clipped to the cone from x through P, projected from x onto
 // P's plane, united (Clipper, integer coordinates) and the contour integral of their union is the form factor
 // of the hidden part of P; F_visible(x -> P) = F(x -> P) - F_hidden. The patch-to-patch value integrates
-// F_hidden over the source with an adaptive outer rule (element against its four children), so penumbra
+// F_hidden over the source with an adaptive outer rule (an embedded degree-7/5 rule per element, bisected where they differ most), so penumbra
 // kinks are resolved to a requested absolute tolerance.
 //
 // Units: metres; form factors dimensionless. Occluders are planar simple polygons (any orientation: both

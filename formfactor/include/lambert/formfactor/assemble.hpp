@@ -26,8 +26,8 @@
 //          hidden; otherwise, at each point x of an adaptive outer rule on the source, the occluders are
 //          clipped to the cone from x through the target, projected on the target's plane, united (Clipper,
 //          integer coordinates) and the union's contour integral is the hidden part of F(x -> target). The
-//          outer rule compares each element with its four children and refines where they differ, until the
-//          hidden part's estimated error is <= tolerance: occluded pairs meet the unoccluded entries' tolerance.
+//          outer rule (an embedded degree-7/5 rule per element, bisected where the two differ most) refines until
+//          the hidden part's estimated error is <= tolerance: occluded pairs meet the unoccluded entries' tolerance.
 //   rays   the visible fraction is a ray estimate (rays_per_pair), Stats::row_visibility_sigma its error.
 // auto takes the exact path, except for pairs whose unoccluded F (either direction) is at most the tolerance,
 // where any visible fraction is within the tolerance: those take the rays.
