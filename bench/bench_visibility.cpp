@@ -32,9 +32,10 @@ double cpu_seconds() {
          1e-6 * double(u.ru_stime.tv_usec);
 }
 
-// OBJ faces (v and f lines only), wound as in the file, then a box 10 % larger than the bounding box, wound
-// inward, so the scene is closed (a ground plane of the model may coincide with nothing: the box floor lies
-// below it).
+// OBJ faces (v and f lines only), wound as in the file, then a box wound inward, so the scene is closed. A model
+// with faces at its lowest z (a ground: udales_shape.obj's ground and building footprints cover its bounding
+// rectangle) gets four walls standing on the bounding rectangle's edges and a roof at twice the model's height,
+// no floor: every row must sum to 1. Otherwise the box is 10 % larger than the bounding box on every side.
 mesh::shapes::Polygons obj_in_box(const std::string& path) {
   std::ifstream in(path);
   if (!in) {
@@ -63,6 +64,22 @@ mesh::shapes::Polygons obj_in_box(const std::string& path) {
       }
       polys.push_back(poly);
     }
+  }
+  const double z0 = box.min().z();
+  bool ground = false;
+  for (const auto& q : polys) {
+    bool low = !q.empty();
+    for (const Vec3& p : q) low = low && p.z() == z0;
+    ground = ground || low;
+  }
+  if (ground) {
+    const Vec3 lo = box.min(), hi(box.max().x(), box.max().y(), z0 + 2 * (box.max().z() - z0));
+    for (auto& q : mesh::shapes::box(lo, hi, 1, true)) {
+      bool floor = true;
+      for (const Vec3& p : q) floor = floor && p.z() == z0;
+      if (!floor) polys.push_back(q);
+    }
+    return polys;
   }
   const Vec3 c = box.center(), h = 0.55 * box.sizes();
   for (auto& q : mesh::shapes::box(c - h, c + h, 1, true)) polys.push_back(q);
