@@ -543,7 +543,7 @@ namespace ff = formfactor;
 // or with a dent (closed but not convex) gets -1, as does a lone plate; two separate blocks get two ids. The exact
 // outer rule skips its forced search for gaps between occluders (EEE events) only on elements whose occluders all
 // share one id, so each -1 case here is one where a gap could open between critical lines.
-TEST(ExactVisibilityNumerics, ConvexSolidsAreTheClosedConvexComponentsOnly) {
+TEST(ExactVisibilityNumerics, ConvexSolidsAreTheConvexComponentsWithTheirOpenFacets) {
   using mesh::shapes::Polygons;
   auto block = [](const Vec3& lo, const Vec3& hi) { return mesh::shapes::box(lo, hi, 2, false); };
   // The +z face (one quad) of a unit block replaced by four triangles to an apex at height z: a tent (convex) for
@@ -555,33 +555,118 @@ TEST(ExactVisibilityNumerics, ConvexSolidsAreTheClosedConvexComponentsOnly) {
     for (size_t k = 0; k < top.size(); ++k) p.push_back({top[k], top[(k + 1) % top.size()], Vec3(0.5, 0.5, z)});
     return p;
   };
+  // A quad split into k x k quads (same winding): its neighbours' corners end on its pieces' edges (T-junctions).
+  auto split = [](const std::vector<Vec3>& q, int k) {
+    Polygons out;
+    auto at = [&](double a, double b) { return (1 - a) * (1 - b) * q[0] + a * (1 - b) * q[1] + a * b * q[2] + (1 - a) * b * q[3]; };
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < k; ++j) {
+        const double a0 = double(i) / k, a1 = double(i + 1) / k, b0 = double(j) / k, b1 = double(j + 1) / k;
+        out.push_back({at(a0, b0), at(a1, b0), at(a1, b1), at(a0, b1)});
+      }
+    return out;
+  };
+  auto rect_z = [](double x0, double y0, double x1, double y1, double z, bool up) {
+    std::vector<Vec3> q = {Vec3(x0, y0, z), Vec3(x1, y0, z), Vec3(x1, y1, z), Vec3(x0, y1, z)};
+    if (!up) std::reverse(q.begin(), q.end());
+    return q;
+  };
+  // A floor [-1, 2]^2 facing up with the footprint [0, 1]^2 of a unit block imprinted: the footprint and four
+  // quads around it (T-junctions at the footprint's corners).
+  auto floor = [&] {
+    return Polygons{rect_z(0, 0, 1, 1, 0, true), rect_z(-1, -1, 2, 0, 0, true), rect_z(-1, 1, 2, 2, 0, true),
+                    rect_z(-1, 0, 0, 1, 0, true), rect_z(1, 0, 2, 1, 0, true)};
+  };
   struct Case {
     const char* name;
     Polygons polys;
-    bool solid;
+    std::vector<int> open;  // per patch: open facets of its solid, -1 if it belongs to none
   };
+  auto uniform = [](size_t n, int v) { return std::vector<int>(n, v); };
   std::vector<Case> cases;
-  cases.push_back({"closed block 2 x 2 per face", block(Vec3(0, 0, 0), Vec3(1, 2, 3)), true});
-  cases.push_back({"tent roof", roofed(1.5), true});
-  cases.push_back({"dented roof", roofed(0.6), false});
+  cases.push_back({"closed block 2 x 2 per face", block(Vec3(0, 0, 0), Vec3(1, 2, 3)), uniform(24, 0)});
+  cases.push_back({"tent roof", roofed(1.5), uniform(9, 0)});
+  cases.push_back({"dented roof", roofed(0.6), uniform(9, -1)});
   Polygons open = block(Vec3(0, 0, 0), Vec3(1, 1, 1));
   open.pop_back();
-  cases.push_back({"block with a missing quad", open, false});
+  cases.push_back({"block with a missing quad", open, uniform(23, 1)});
   Polygons flipped = block(Vec3(0, 0, 0), Vec3(1, 1, 1));
   std::reverse(flipped[3].begin(), flipped[3].end());
-  cases.push_back({"block with one quad wound backwards", flipped, false});
-  cases.push_back({"lone plate", {{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)}}, false});
+  // The backwards quad lies in front of its neighbours' planes: not joined. The others are a solid open where it is.
+  std::vector<int> flipped_open = uniform(24, 1);
+  flipped_open[3] = -1;
+  cases.push_back({"block with one quad wound backwards", flipped, flipped_open});
+  cases.push_back({"lone plate", {{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)}}, uniform(1, -1)});
+  {
+    Polygons t = mesh::shapes::box(Vec3(0, 0, 0), Vec3(1, 1, 1), 1, false);
+    const std::vector<Vec3> side = t[0];
+    t.erase(t.begin());
+    for (auto& q : split(side, 3)) t.push_back(q);
+    cases.push_back({"block with one face split 3 x 3 (T-junctions)", t, uniform(14, 0)});
+  }
+  {
+    Polygons p = floor(), box = mesh::shapes::box(Vec3(0, 0, 0), Vec3(1, 1, 1), 1, false);
+    std::vector<int> expect(5, -1);
+    for (auto& q : box) p.push_back(q), expect.push_back(0);
+    cases.push_back({"closed block standing on a floor with its footprint imprinted", p, expect});
+    p = floor(), expect.assign(5, -1);
+    for (auto& q : box) {
+      bool bottom = true;
+      for (const Vec3& c : q) bottom = bottom && c.z() == 0;
+      if (!bottom) p.push_back(q), expect.push_back(1);
+    }
+    cases.push_back({"open block (no bottom) standing on a floor", p, expect});
+  }
+  {
+    // A leg [0, 0.2]^2 x [0, 1] under a slab [0, 2]^2 x [1, 1.2]; the slab's underside split into the leg's contact
+    // and the rest: two closed solids, the coincident contact faces (facing each other) not joined.
+    Polygons p = mesh::shapes::box(Vec3(0, 0, 0), Vec3(0.2, 0.2, 1), 1, false);
+    std::vector<int> expect(6, 0);
+    for (auto& q : mesh::shapes::box(Vec3(0, 0, 1), Vec3(2, 2, 1.2), 1, false)) {
+      bool under = true;
+      for (const Vec3& c : q) under = under && c.z() == 1;
+      if (under) continue;
+      p.push_back(q), expect.push_back(0);
+    }
+    for (auto& q : {rect_z(0, 0, 0.2, 0.2, 1, false), rect_z(0.2, 0, 2, 0.2, 1, false), rect_z(0, 0.2, 2, 2, 1, false)})
+      p.push_back(q), expect.push_back(0);
+    cases.push_back({"leg under a slab", p, expect});
+  }
   for (const Case& c : cases) {
+    const auto g = mesh::PatchGeometry::from_polygons(c.polys);
+    ASSERT_EQ(size_t(g.size()), c.open.size()) << c.name;
+    std::vector<int> all(size_t(g.size()));
+    for (int p = 0; p < g.size(); ++p) all[size_t(p)] = p;
+    const auto solids = ff::detail::find_convex_solids(g, all, 3.0);
+    for (int p = 0; p < g.size(); ++p) {
+      const int id = solids.of_patch[size_t(p)];
+      EXPECT_EQ(id >= 0, c.open[size_t(p)] >= 0) << c.name << ": patch " << p << " id " << id;
+      if (id >= 0 && c.open[size_t(p)] >= 0)
+        EXPECT_EQ(int(solids.open[size_t(id)].size()), c.open[size_t(p)]) << c.name << ": patch " << p;
+    }
+  }
+  {
+    // Leg and slab: two solids (a touching pair would not be convex together).
+    const auto& c = cases.back();
     const auto g = mesh::PatchGeometry::from_polygons(c.polys);
     std::vector<int> all(size_t(g.size()));
     for (int p = 0; p < g.size(); ++p) all[size_t(p)] = p;
-    const std::vector<int> id = ff::detail::convex_solids(g, all, 3.0);
-    for (int p = 0; p < g.size(); ++p) {
-      if (c.solid) {
-        EXPECT_EQ(id[size_t(p)], id[0]) << c.name << ": patch " << p;
-      }
-      EXPECT_EQ(id[size_t(p)] >= 0, c.solid) << c.name << ": patch " << p << " id " << id[size_t(p)];
-    }
+    const auto solids = ff::detail::find_convex_solids(g, all, 3.0);
+    EXPECT_EQ(solids.open.size(), 2u);
+    EXPECT_NE(solids.of_patch[0], solids.of_patch[6]);
+  }
+  {
+    // The open block on the floor is a solid for pairs above the floor's plane, not for a pair with a corner below.
+    const auto& c = cases[size_t(cases.size() - 2)];
+    const auto g = mesh::PatchGeometry::from_polygons(c.polys);
+    std::vector<int> all(size_t(g.size()));
+    for (int p = 0; p < g.size(); ++p) all[size_t(p)] = p;
+    const auto solids = ff::detail::find_convex_solids(g, all, 3.0);
+    ASSERT_EQ(solids.open.size(), 1u);
+    const std::vector<Vec3> floor_patch = rect_z(-1, -1, 2, 0, 0, true), ceiling = rect_z(-1, -1, 2, 2, 3, false),
+                            below = rect_z(-1, -1, 2, 2, -0.5, true);
+    EXPECT_TRUE(ff::detail::solid_usable(solids.open[0], floor_patch, ceiling, 3e-9));
+    EXPECT_FALSE(ff::detail::solid_usable(solids.open[0], below, ceiling, 3e-9));
   }
   // Two blocks apart: two solids. Assembled in a room: the block of room_with_block is one solid, and its merged
   // faces (one polygon per face) carry its id.

@@ -2,6 +2,10 @@
 // target's plane, united with Clipper (integer coordinates), and the union's contour integral subtracted.
 #include "exact_visibility.hpp"
 
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/convex_hull_3.h>
+
 #include <polyclipping/clipper.hpp>
 
 #include <algorithm>
@@ -971,87 +975,182 @@ std::vector<Occluder> as_occluders(const std::vector<std::vector<Vec3>>& polys) 
 }
 }  // namespace
 
-std::vector<int> convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale) {
-  std::vector<int> solid(size_t(g.size()), -1);
-  if (!(scale > 0) || occluders.empty()) return solid;
-  // Corners with bit-identical coordinates are one corner (a mesh's shared vertices).
-  std::vector<std::pair<std::array<double, 3>, int>> corner;  // (coordinates, slot in the occluders' corner list)
-  std::vector<int> first(occluders.size() + 1, 0);
-  std::vector<Vec3> pos;  // per slot
-  for (size_t k = 0; k < occluders.size(); ++k) {
-    for (const Vec3& q : g.polygon(occluders[k])) corner.push_back({{q.x(), q.y(), q.z()}, int(corner.size())}), pos.push_back(q);
-    first[k + 1] = int(corner.size());
-  }
-  std::vector<int> id(corner.size());
-  std::sort(corner.begin(), corner.end());
-  int next = -1;
-  for (size_t k = 0; k < corner.size(); ++k) {
-    if (k == 0 || corner[k].first != corner[k - 1].first) ++next;
-    id[size_t(corner[k].second)] = next;
-  }
-  std::vector<Vec3> upos(size_t(next + 1));
-  for (size_t c = 0; c < id.size(); ++c) upos[size_t(id[c])] = pos[c];
-  // Edges (lower id, higher id, direction, occluder index), grouped by their corners.
-  std::vector<std::array<int, 4>> edges;
-  for (size_t k = 0; k < occluders.size(); ++k) {
-    const int b = first[k], m = first[k + 1] - b;
-    for (int e = 0; e < m; ++e) {
-      const int u = id[size_t(b + e)], v = id[size_t(b + (e + 1) % m)];
-      if (u != v) edges.push_back({std::min(u, v), std::max(u, v), u < v ? 1 : 0, int(k)});
+ConvexSolids find_convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale) {
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+  ConvexSolids out;
+  out.of_patch.assign(size_t(g.size()), -1);
+  const size_t n = occluders.size();
+  if (!(scale > 0) || n < 2) return out;
+  const double eps = 1e-9 * scale;
+  // Signed distance of q from the plane of occluder k (positive in front of it).
+  auto dist = [&](size_t k, const Vec3& q) {
+    const int p = occluders[k];
+    return g.normal[size_t(p)].dot(q - g.centroid[size_t(p)]);
+  };
+  auto max_dist = [&](size_t k, size_t of) {
+    double m = -INFINITY;
+    for (const Vec3& q : g.polygon(occluders[of])) m = std::max(m, dist(k, q));
+    return m;
+  };
+  auto min_dist = [&](size_t k, size_t of) {
+    double m = INFINITY;
+    for (const Vec3& q : g.polygon(occluders[of])) m = std::min(m, dist(k, q));
+    return m;
+  };
+  // True if a and b share a piece of boundary: two corners (of either, farther apart than eps) lie within eps of
+  // both boundaries (an edge, or part of one at a T-junction; not a single corner).
+  auto on_boundary = [&](const Vec3& q, size_t b) {
+    const auto B = g.polygon(occluders[b]);
+    for (size_t e = 0; e < B.size(); ++e) {
+      const Vec3 &p0 = B[e], &p1 = B[(e + 1) % B.size()], d = p1 - p0;
+      const double L2 = d.squaredNorm(), t = L2 > 0 ? std::clamp((q - p0).dot(d) / L2, 0.0, 1.0) : 0.0;
+      if ((q - (p0 + t * d)).norm() <= eps) return true;
     }
+    return false;
+  };
+  auto share_edge = [&](size_t a, size_t b) {
+    Vec3 first = Vec3::Zero();
+    bool have = false;
+    for (const auto& [x, y] : {std::pair{a, b}, std::pair{b, a}})
+      for (const Vec3& q : g.polygon(occluders[x])) {
+        if (!on_boundary(q, y)) continue;
+        if (have && (q - first).norm() > eps) return true;
+        if (!have) first = q, have = true;
+      }
+    return false;
+  };
+  // Faces that share an edge (or part of one: T-junctions) and lie behind each
+  // other's planes (a convex edge between outward faces) are joined. Not joined: a floor and a box standing on it (the
+  // floor lies in front of the box's sides), a table's underside and a leg under it (the leg's side lies in front of
+  // the underside's plane), a room's inward walls and its floor. Then faces in one plane facing the same way (one
+  // facet meshed in pieces) are joined where they touch if they are already in one component or one of them has no
+  // joint of the first kind (a piece inside a facet): a leg flush with the side of the slab it carries stays apart.
+  std::vector<Eigen::AlignedBox3d> box(n);
+  std::vector<size_t> order(n);
+  for (size_t k = 0; k < n; ++k) {
+    for (const Vec3& q : g.polygon(occluders[k])) box[k].extend(q);
+    box[k].min().array() -= eps, box[k].max().array() += eps;
+    order[k] = k;
   }
-  std::sort(edges.begin(), edges.end());
-  std::vector<int> parent(occluders.size());
-  for (size_t k = 0; k < parent.size(); ++k) parent[k] = int(k);
-  auto root = [&](int a) {
-    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return box[a].min().x() < box[b].min().x(); });
+  // Two partitions: `all` joins every such pair; `skeleton` joins coplanar pieces only within a component of the
+  // first kind of joint or to a piece that has none. A component of `all` that is not convex (a leg under a slab,
+  // flush with its side) is tried again as its `skeleton` components.
+  std::vector<size_t> all(n), skel(n);
+  for (size_t k = 0; k < n; ++k) all[k] = skel[k] = k;
+  auto root = [](std::vector<size_t>& parent, size_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
     return a;
   };
-  std::vector<char> open(occluders.size(), 0);  // on a boundary, non-manifold or inconsistently wound edge
-  for (size_t a = 0; a < edges.size();) {
-    size_t b = a;
-    while (b < edges.size() && edges[b][0] == edges[a][0] && edges[b][1] == edges[a][1]) ++b;
-    const bool manifold = b - a == 2 && edges[a][2] != edges[a + 1][2];
-    for (size_t k = a; k < b; ++k) {
-      if (!manifold) open[size_t(edges[k][3])] = 1;
-      parent[size_t(root(edges[k][3]))] = root(edges[a][3]);
-    }
-    a = b;
-  }
-  std::vector<std::vector<int>> members(occluders.size());
-  for (size_t k = 0; k < occluders.size(); ++k) members[size_t(root(int(k)))].push_back(int(k));
-  const double eps = 1e-9 * scale;
-  int solids = 0;
-  for (size_t r = 0; r < occluders.size(); ++r) {
-    const std::vector<int>& M = members[r];
-    if (M.empty()) continue;
-    bool ok = true;
-    for (int k : M) ok = ok && !open[size_t(k)];
-    std::vector<int> ids;  // the component's distinct corners
-    for (int k : M)
-      for (int c = first[size_t(k)]; c < first[size_t(k) + 1]; ++c) ids.push_back(id[size_t(c)]);
-    std::sort(ids.begin(), ids.end());
-    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
-    if (!ok || double(M.size()) * double(ids.size()) > 1e8) continue;
-    // Every corner of the component on one side (the same side for every face) of every face's plane.
-    int side = 0;
-    for (size_t a = 0; a < M.size() && ok; ++a) {
-      const int p = occluders[size_t(M[a])];
-      const Vec3& n = g.normal[size_t(p)];
-      const double o = n.dot(g.centroid[size_t(p)]);
-      for (size_t c = 0; c < ids.size() && ok; ++c) {
-        const double d = n.dot(upos[size_t(ids[c])]) - o;
-        if (std::abs(d) <= eps) continue;
-        const int sd = d > 0 ? 1 : -1;
-        if (side == 0) side = sd;
-        ok = sd == side;
+  std::vector<std::pair<size_t, size_t>> coplanar_pairs;
+  std::vector<char> jointed(n, 0);
+  for (size_t ia = 0; ia < n; ++ia) {
+    const size_t a = order[ia];
+    for (size_t ib = ia + 1; ib < n && box[order[ib]].min().x() <= box[a].max().x(); ++ib) {
+      const size_t b = order[ib];
+      if (!box[a].intersects(box[b])) continue;
+      const Vec3 &na = g.normal[size_t(occluders[a])], &nb = g.normal[size_t(occluders[b])];
+      const bool coplanar = std::abs(na.dot(nb)) >= 1 - 1e-9 && max_dist(a, b) <= eps && min_dist(a, b) >= -eps;
+      if (coplanar ? na.dot(nb) < 0 : max_dist(a, b) > eps || max_dist(b, a) > eps) continue;
+      if (!share_edge(a, b)) continue;
+      all[root(all, a)] = root(all, b);
+      if (coplanar) {
+        coplanar_pairs.push_back({a, b});
+        continue;
       }
+      jointed[a] = jointed[b] = 1;
+      skel[root(skel, a)] = root(skel, b);
     }
-    if (!ok) continue;
-    for (int k : M) solid[size_t(occluders[size_t(k)])] = solids;
-    ++solids;
   }
-  return solid;
+  for (const auto& [a, b] : coplanar_pairs)
+    if (root(skel, a) == root(skel, b) || !jointed[a] || !jointed[b]) skel[root(skel, a)] = root(skel, b);
+  auto try_solid = [&](const std::vector<size_t>& M) {
+    if (M.size() < 2) return false;
+    std::vector<Vec3> corners;
+    for (size_t k : M)
+      for (const Vec3& q : g.polygon(occluders[k])) corners.push_back(q);
+    if (double(M.size()) * double(corners.size()) > 1e8) return false;
+    // Convex, wound outward: every corner of the component behind or on every face's plane.
+    bool ok = true;
+    for (size_t k : M)
+      for (size_t c = 0; c < corners.size() && ok; ++c) ok = dist(k, corners[c]) <= eps;
+    if (!ok) return false;
+    // The convex polytope P of the corners and its facets (hull triangles grouped by plane, outward normals).
+    std::vector<K::Point_3> pts;
+    for (const Vec3& q : corners) pts.emplace_back(q.x(), q.y(), q.z());
+    CGAL::Surface_mesh<K::Point_3> hull;
+    CGAL::convex_hull_3(pts.begin(), pts.end(), hull);
+    if (hull.number_of_faces() < 4) return false;  // flat: no volume
+    struct Facet {
+      Vec3 n;
+      double o, area, covered;
+    };
+    std::vector<Facet> facets;
+    for (auto f : hull.faces()) {
+      std::array<Vec3, 3> t;
+      int k = 0;
+      for (auto v : CGAL::vertices_around_face(hull.halfedge(f), hull)) {
+        const auto& P = hull.point(v);
+        if (k < 3) t[size_t(k)] = Vec3(P.x(), P.y(), P.z());
+        ++k;
+      }
+      const Vec3 N = (t[1] - t[0]).cross(t[2] - t[0]);
+      const double A2 = N.norm();
+      if (!(A2 > 0)) continue;
+      const Vec3 u = N / A2;
+      const double o = u.dot(t[0]);
+      bool found = false;
+      for (Facet& F : facets)
+        if (F.n.dot(u) >= 1 - 1e-9 && std::abs(F.o - o) <= eps) {
+          F.area += 0.5 * A2, found = true;
+          break;
+        }
+      if (!found) facets.push_back({u, o, 0.5 * A2, 0.0});
+    }
+    // Each face covers part of the facet in its plane; a facet its faces do not cover entirely is open.
+    for (size_t k : M) {
+      const int p = occluders[k];
+      bool found = false;
+      for (Facet& F : facets)
+        if (F.n.dot(g.normal[size_t(p)]) >= 1 - 1e-6 && std::abs(F.n.dot(g.centroid[size_t(p)]) - F.o) <= eps) {
+          F.covered += g.area[size_t(p)], found = true;
+          break;
+        }
+      ok = ok && found;
+    }
+    std::vector<std::array<double, 4>> open;
+    for (const Facet& F : facets) {
+      if (F.covered > F.area * (1 + 1e-6)) ok = false;  // overlapping faces: not a surface
+      if (F.covered < F.area * (1 - 1e-9)) open.push_back({F.n.x(), F.n.y(), F.n.z(), F.o});
+    }
+    if (!ok || open.size() == facets.size()) return false;
+    const int id = int(out.open.size());
+    for (size_t k : M) out.of_patch[size_t(occluders[k])] = id;
+    out.open.push_back(std::move(open));
+    return true;
+  };
+  std::vector<std::vector<size_t>> members(n);
+  for (size_t k = 0; k < n; ++k) members[root(all, k)].push_back(k);
+  std::vector<std::vector<size_t>> retry(n);
+  for (const std::vector<size_t>& M : members)
+    if (M.size() >= 2 && !try_solid(M))
+      for (size_t k : M) retry[root(skel, k)].push_back(k);
+  for (const std::vector<size_t>& M : retry)
+    if (M.size() >= 2 && M.size() < members[root(all, M[0])].size()) try_solid(M);
+  return out;
+}
+
+std::vector<int> convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale) {
+  return find_convex_solids(g, occluders, scale).of_patch;
+}
+
+bool solid_usable(const std::vector<std::array<double, 4>>& open, std::span<const Vec3> a, std::span<const Vec3> b,
+                  double eps) {
+  for (const auto& F : open)
+    for (std::span<const Vec3> P : {a, b})
+      for (const Vec3& q : P)
+        if (F[0] * q.x() + F[1] * q.y() + F[2] * q.z() - F[3] > eps) return false;
+  return true;
 }
 
 namespace {
@@ -1076,7 +1175,9 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
   MergedOccluders out;
   out.of_patch.assign(size_t(g.size()), -1);
   if (!(scale > 0)) return out;
-  out.solid_of_patch = convex_solids(g, occluders, scale);
+  ConvexSolids solids = find_convex_solids(g, occluders, scale);
+  out.solid_of_patch = std::move(solids.of_patch);
+  out.solid_open = std::move(solids.open);
   out.solid_centre = solid_centres(g, out.solid_of_patch);
   // Occluders grouped by their unoriented plane (mesh::plane_ids), groups in order of first appearance.
   const std::vector<int> plane = mesh::plane_ids(g, occluders, scale);
@@ -1165,6 +1266,16 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
   };
   occ.clear();
   merged_ids.clear();
+  // A solid with open facets is one only for pairs behind them (solid_usable); decided once per solid and pair.
+  std::vector<std::pair<int, bool>> usable;
+  auto solid_for_pair = [&](int id) {
+    if (id < 0 || merged.solid_open[size_t(id)].empty()) return id;
+    for (const auto& [s, u] : usable)
+      if (s == id) return u ? id : -1;
+    const bool u = solid_usable(merged.solid_open[size_t(id)], g.polygon(i), g.polygon(j), 1e-9 * scale);
+    usable.push_back({id, u});
+    return u ? id : -1;
+  };
   for (int p : candidates) {
     if (coplanar(p, i) || coplanar(p, j)) continue;
     const int m = merged.of_patch.empty() ? -1 : merged.of_patch[size_t(p)];
@@ -1173,7 +1284,7 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
       continue;
     }
     Occluder o{g.polygon(p), convex[size_t(p)] != 0};
-    if (!merged.solid_of_patch.empty() && merged.solid_of_patch[size_t(p)] >= 0) {
+    if (!merged.solid_of_patch.empty() && solid_for_pair(merged.solid_of_patch[size_t(p)]) >= 0) {
       o.solid = merged.solid_of_patch[size_t(p)];
       set_inner(o, P.nrm[p], merged.solid_centre[size_t(o.solid)], 1e-9 * scale);
     }
@@ -1182,7 +1293,7 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
   std::sort(merged_ids.begin(), merged_ids.end());
   merged_ids.erase(std::unique(merged_ids.begin(), merged_ids.end()), merged_ids.end());
   for (int m : merged_ids) {
-    Occluder o{merged.polys[size_t(m)], merged.convex[size_t(m)] != 0, merged.solid[size_t(m)]};
+    Occluder o{merged.polys[size_t(m)], merged.convex[size_t(m)] != 0, solid_for_pair(merged.solid[size_t(m)])};
     if (o.solid >= 0)
       set_inner(o, mesh::newell_normal(o.poly).normalized(), merged.solid_centre[size_t(o.solid)], 1e-9 * scale);
     occ.push_back(o);
@@ -1239,10 +1350,11 @@ PairResult visible_polygon_to_polygon(std::span<const Vec3> Pi, std::span<const 
     const auto g = mesh::PatchGeometry::from_polygons(polys);
     std::vector<int> all(occ.size());
     for (size_t k = 0; k < all.size(); ++k) all[k] = int(k);
-    const std::vector<int> id = detail::convex_solids(g, all, scale);
+    const detail::ConvexSolids solids = detail::find_convex_solids(g, all, scale);
+    const std::vector<int>& id = solids.of_patch;
     const std::vector<Vec3> centre = detail::solid_centres(g, id);
     for (size_t k = 0; k < occ.size(); ++k) {
-      if (id[k] < 0) continue;
+      if (id[k] < 0 || !detail::solid_usable(solids.open[size_t(id[k])], Pi, Pj, 1e-9 * scale)) continue;
       occ[k].solid = id[k];
       detail::set_inner(occ[k], g.normal[k], centre[size_t(id[k])], 1e-9 * scale);
     }

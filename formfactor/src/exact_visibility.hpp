@@ -91,16 +91,30 @@ struct MergedOccluders {
   std::vector<int> of_patch;  // per patch of the geometry: its merged polygon, or -1 (the patch is used as it is)
   std::vector<int> solid_of_patch;  // per patch: convex_solids
   std::vector<Vec3> solid_centre;   // per solid id: the mean of its faces' centroids (inside it)
+  std::vector<std::vector<std::array<double, 4>>> solid_open;  // per solid id: ConvexSolids::open
 };
 
-// Closed convex solids among the occluders: per patch of g, an id shared by the faces of one connected component
-// (patches joined by edges with bit-identical corners) that is closed (every edge in exactly two faces, wound
-// opposite ways) and convex (every corner of the component within 1e-9 * scale of, or on one side of, every face's
-// plane, the same side for all faces); -1 for every other patch. From any point outside such a solid its faces hide
-// exactly its silhouette (a segment that meets the solid crosses its surface at a face), a convex region whose
-// corners are the solid's corners: the hidden part changes its structure only on critical lines (no EEE events),
-// and hidden_point_to_polygon takes the convex hull of the projected faces instead of their Boolean union.
+// Convex solids among the occluders (docs/physics.md section 6): a connected set of occluder faces on the boundary
+// of a convex polytope P, wound outward. Faces are joined where they touch (a corner of one within 1e-9 * scale of
+// the other's boundary: shared corners and T-junctions alike) and each lies behind the other's plane, or where they
+// lie in one plane facing the same way; the component is a solid if every corner of it lies behind or on every
+// face's plane (within 1e-9 * scale) and it is not flat. P is the convex hull of its corners. A facet of P its faces
+// do not cover entirely (a box's bottom standing on the floor, its back against a wall, a door cut in a wall) is
+// *open*: such a solid hides exactly its silhouette only as seen from points behind every open facet's plane, so it is
+// used as a solid only for pairs whose corners all lie there (solid_usable); a closed solid (no open facet) for
+// every pair. From such points, a segment that meets P enters it through a face that is present: the faces hide
+// P's silhouette, a convex region whose corners are P's, so the hidden part changes its structure only on critical
+// lines (no EEE events) and hidden_point_to_polygon takes the convex hull of the projected faces instead of their
+// Boolean union.
+struct ConvexSolids {
+  std::vector<int> of_patch;  // per patch of g: solid id, or -1
+  std::vector<std::vector<std::array<double, 4>>> open;  // per solid: open facets (outward unit normal n, offset o)
+};
+ConvexSolids find_convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 std::vector<int> convex_solids(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
+// True if every corner of a and b lies behind or on (within eps) every open facet's plane n . q <= o.
+bool solid_usable(const std::vector<std::array<double, 4>>& open, std::span<const Vec3> a, std::span<const Vec3> b,
+                  double eps);
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 
 // The occluders of the pair (i, j) for exact_hidden_pair, from shaft candidates (OccluderTree::collect): those
