@@ -131,7 +131,7 @@ struct Stats {
   // Exact path: occluder patches merged with coplanar touching neighbours (a meshed wall or block face) into
   // this many polygons, one per connected region of their union.
   int occluders_merged = 0, occluder_regions = 0;
-  int convex_solids = 0, convex_solid_faces = 0;  // exact path: closed convex solids among the occluders, their faces
+  int convex_solids = 0, convex_solid_faces = 0;  // exact path: convex solids (closed or open) among the occluders, their faces
   std::map<std::string, long long> pairs_by_method;  // unoccluded-integral method per computed pair
   long long rays_cast = 0;
   bool scene_can_occlude = false;  // false: no patch can block another (convex enclosure), no rays at all
