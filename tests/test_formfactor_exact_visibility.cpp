@@ -598,6 +598,7 @@ TEST(ExactVisibilityNumerics, ConvexSolidsAreTheConvexComponentsWithTheirOpenFac
   flipped_open[3] = -1;
   cases.push_back({"block with one quad wound backwards", flipped, flipped_open});
   cases.push_back({"lone plate", {{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)}}, uniform(1, -1)});
+  cases.push_back({"plate in four pieces", split({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)}, 2), uniform(4, -1)});
   {
     Polygons t = mesh::shapes::box(Vec3(0, 0, 0), Vec3(1, 1, 1), 1, false);
     const std::vector<Vec3> side = t[0];

@@ -816,7 +816,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // between their samples (a block's side and bottom: the root rule and its split agreed to 1e-12 and were
     // both 2 % off): above kLineForcedArea its error is bounded by its unoccluded contribution, and it is split on.
     // Its rules are not evaluated then (their values would not change that): only if it is still a leaf at the end
-    // (finish_lazy below).
+    // (after the refinement loop).
     l.lazy = pick >= 0 && A > area_s * kLineForcedArea;
     if (l.lazy) {
       l.e = e;
@@ -1077,12 +1077,15 @@ ConvexSolids find_convex_solids(const mesh::PatchGeometry& g, const std::vector<
     for (size_t k : M)
       for (size_t c = 0; c < corners.size() && ok; ++c) ok = dist(k, corners[c]) <= eps;
     if (!ok) return false;
+    bool flat = true;  // pieces of one plane (a meshed floor): no volume, no hull to build
+    for (size_t c = 0; c < corners.size() && flat; ++c) flat = std::abs(dist(M[0], corners[c])) <= eps;
+    if (flat) return false;
     // The convex polytope P of the corners and its facets (hull triangles grouped by plane, outward normals).
     std::vector<K::Point_3> pts;
     for (const Vec3& q : corners) pts.emplace_back(q.x(), q.y(), q.z());
     CGAL::Surface_mesh<K::Point_3> hull;
     CGAL::convex_hull_3(pts.begin(), pts.end(), hull);
-    if (hull.number_of_faces() < 4) return false;  // flat: no volume
+    if (hull.number_of_faces() < 4) return false;
     struct Facet {
       Vec3 n;
       double o, area, covered;
