@@ -560,12 +560,12 @@ int split_along(const std::array<Vec3, 4>& v, const Critical& c, std::array<Elem
   return out;
 }
 
-// True if the polygon p (normal n) is convex with corners turning counter-clockwise about n.
-bool convex_ring(std::span<const Vec3> p, const Vec3& n) {
-  const size_t m = p.size();
+// True if every turn of the polygon is counter-clockwise (or straight) about n: convex, oriented by n.
+bool convex_polygon(std::span<const Vec3> poly, const Vec3& n) {
+  const size_t m = poly.size();
   for (size_t k = 0; k < m; ++k)
-    if ((p[(k + 1) % m] - p[k]).cross(p[(k + 2) % m] - p[(k + 1) % m]).dot(n) < 0) return false;
-  return m >= 3;
+    if ((poly[(k + 1) % m] - poly[k]).cross(poly[(k + 2) % m] - poly[(k + 1) % m]).dot(n) < 0) return false;
+  return true;
 }
 
 // The part [lo, hi] (parameters of q0 + mu (q1 - q0), mu in [0, 1]) of the segment whose line through c meets the
@@ -684,7 +684,7 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
   const bool inter = std::unique(units.begin(), units.end()) - units.begin() <= kMaxInterOccluders;
   // Such an event changes the hidden part only if the line of sight through the corner and the edge meets the
   // target: each edge is cut to the part inside the double cone from the corner through the (convex) target.
-  const bool cone = convex_ring(ct, nt);
+  const bool cone = convex_polygon(ct, nt);
   if (inter)
     for (size_t a = 0; a < occ.size(); ++a)
       for (size_t b = 0; b < occ.size(); ++b)
@@ -959,12 +959,6 @@ std::vector<CriticalSegment> pair_critical_lines(std::span<const Vec3> s, const 
 }
 
 namespace {
-bool convex_polygon(std::span<const Vec3> poly, const Vec3& n) {
-  const size_t m = poly.size();
-  for (size_t k = 0; k < m; ++k)
-    if ((poly[(k + 1) % m] - poly[k]).cross(poly[(k + 2) % m] - poly[(k + 1) % m]).dot(n) < 0) return false;
-  return true;
-}
 std::vector<Occluder> as_occluders(const std::vector<std::vector<Vec3>>& polys) {
   std::vector<Occluder> out;
   for (const auto& q : polys) {
