@@ -481,21 +481,19 @@ int corners_of(const std::array<Vec3, 4>& v, std::array<Vec3, 4>& c) {
   return n;
 }
 
-// True if the segment [a, b] (in the source's plane) meets the convex element v or passes within eps of it.
-bool touches(const std::array<Vec3, 4>& v, const Vec3& a, const Vec3& b, const Vec3& ns, double eps) {
-  std::array<Vec3, 4> p;
-  const int n = corners_of(v, p);
-  if (n < 3) return false;
+// Cyrus-Beck: clips the line a + t d, t in [t0, t1], to the convex polygon p[0 .. n) of the plane with normal ns,
+// grown by `grow` on every side. False if nothing is left.
+bool clip_to_polygon(const std::array<Vec3, 4>& p, int n, const Vec3& ns, const Vec3& a, const Vec3& d, double grow,
+                     double& t0, double& t1) {
   double turn = 0;
   for (int k = 1; k + 1 < n; ++k) turn += (p[k] - p[0]).cross(p[k + 1] - p[0]).dot(ns);
   const double o = turn >= 0 ? 1 : -1;
-  double t0 = 0, t1 = 1;
   for (int k = 0; k < n; ++k) {
-    Vec3 nk = o * ns.cross(p[(k + 1) % n] - p[k]);  // points into the element
+    Vec3 nk = o * ns.cross(p[(k + 1) % n] - p[k]);  // points into the polygon
     const double len = nk.norm();
     if (!(len > 0)) continue;
     nk /= len;
-    const double num = nk.dot(a - p[k]) + eps, den = nk.dot(b - a);  // inside (expanded by eps): num + t den >= 0
+    const double num = nk.dot(a - p[k]) + grow, den = nk.dot(d);  // inside: num + t den >= 0
     if (den == 0) {
       if (num < 0) return false;
       continue;
@@ -506,6 +504,14 @@ bool touches(const std::array<Vec3, 4>& v, const Vec3& a, const Vec3& b, const V
     if (t0 > t1) return false;
   }
   return true;
+}
+
+// True if the segment [a, b] (in the source's plane) meets the convex element v or passes within eps of it.
+bool touches(const std::array<Vec3, 4>& v, const Vec3& a, const Vec3& b, const Vec3& ns, double eps) {
+  std::array<Vec3, 4> p;
+  const int n = corners_of(v, p);
+  double t0 = 0, t1 = 1;
+  return n >= 3 && clip_to_polygon(p, n, ns, a, b - a, eps, t0, t1);
 }
 
 // True if the critical line c passes through the interior of the convex element v, leaving more than eps and 1e-6 of
@@ -528,23 +534,9 @@ bool crosses(const Critical& c, const std::array<Vec3, 4>& v, const Vec3& ns, do
   if (!(lo < -keep && hi > keep)) return false;
   *side = std::abs(c.u.dot(centre / double(n) - c.p));
   if (c.t0 == -INFINITY && c.t1 == INFINITY) return true;
-  // The part of the critical segment inside the element (Cyrus-Beck against its sides, oriented by its turn).
-  double turn = 0;
-  for (int k = 1; k + 1 < n; ++k) turn += (p[k] - p[0]).cross(p[k + 1] - p[0]).dot(ns);
-  const double o = turn >= 0 ? 1 : -1;
+  // The part of the critical segment inside the element.
   double t0 = c.t0, t1 = c.t1;
-  for (int k = 0; k < n; ++k) {
-    const Vec3 nk = o * ns.cross(p[(k + 1) % n] - p[k]);  // points into the element
-    const double num = nk.dot(c.p - p[k]), den = nk.dot(c.d);
-    if (den == 0) {
-      if (num < 0) return false;
-      continue;
-    }
-    const double t = -num / den;
-    if (den > 0) t0 = std::max(t0, t);
-    else t1 = std::min(t1, t);
-  }
-  return t1 - t0 > eps;
+  return clip_to_polygon(p, n, ns, c.p, c.d, 0.0, t0, t1) && t1 - t0 > eps;
 }
 
 // Splits the convex element v along the line of c into 2 or 3 elements (triangles as quads with a repeated last
