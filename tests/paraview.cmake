@@ -49,11 +49,14 @@ if(NOT EXISTS ${VTU})
   message(FATAL_ERROR "lambert solve exited 0 but wrote no ${VTU}")
 endif()
 # xvfb-run -a can lose a race for a display number to another xvfb-run started at the same moment
-# (pvbatch then aborts with "bad X server connection"): retry only that, a few times.
+# (pvbatch then aborts with "bad X server connection"; seen when two test suites ran on one machine and every
+# attempt started its search at :99): each attempt starts the search at a random display number, and only that
+# failure is retried.
 foreach(attempt 1 2 3)
+  string(RANDOM LENGTH 3 ALPHABET 123456789 first_display)
   execute_process(
     COMMAND ${CMAKE_COMMAND} -E env PYTHONPATH=${PV_PYTHONPATH}
-            ${XVFB_RUN} -a ${PVBATCH} ${CHECK_SCRIPT} ${VTU} ${PNG}
+            ${XVFB_RUN} -a -n ${first_display} ${PVBATCH} ${CHECK_SCRIPT} ${VTU} ${PNG}
     RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
   message("${out}${err}")
   if(rc EQUAL 0 OR NOT err MATCHES "bad X server connection|Xvfb failed to start|cannot open display")

@@ -806,20 +806,35 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       critical_lines_of(cs, ct, ns, os, nt, ot, std::span<const Occluder>(pool.data(), size_t(root_count)), eps, S, lines);
   for (size_t k = 0; k < lines.size(); ++k) lpool.push_back(int(k));
   const int root_lines = int(lpool.size());
-  // Where an occluder touches the source (a corner or an edge of it on the source's plane, such as a worktop's top
-  // meeting the edge face below it, or a wall standing on the floor), F_hidden has a singular derivative: its samples
-  // can all lie in the smooth part while both embedded rules miss the steep one next to the contact by the same
-  // amount (floorplan.obj, a worktop's edge face at the L's inner corner: estimate 2.4e-12, error 4.7e-8). The
-  // elements touching such a contact take their error from their pieces instead (see push).
+  // Where an occluder touches the source's plane (a corner or an edge of it on the plane, such as a worktop's top
+  // meeting the edge face below it or a wall standing on the floor, or the segment where it passes through the plane),
+  // F_hidden has a singular derivative: the samples of an element reaching it can all lie in the smooth part while
+  // both embedded rules miss the steep part next to it by the same amount (floorplan.obj, a worktop's edge face at the
+  // L's inner corner: one element's estimate 2.4e-12, its error 4.7e-8). The elements touching such a contact take
+  // their error from their pieces instead (see push).
   std::vector<std::array<Vec3, 2>> contacts;
   for (int k = 0; k < root_count; ++k) {
     const auto q = pool[size_t(k)].poly;
+    Vec3 first = Vec3::Zero(), dir = Vec3::Zero(), lo = Vec3::Zero(), hi = Vec3::Zero();  // crossings: their span
+    double tlo = 0, thi = 0;
+    int crossings = 0;
     for (size_t c = 0; c < q.size(); ++c) {
       const Vec3 &a = q[c], &b = q[(c + 1) % q.size()];
-      const bool on_a = std::abs(ns.dot(a) - os) <= eps, on_b = std::abs(ns.dot(b) - os) <= eps;
+      const double da = ns.dot(a) - os, db = ns.dot(b) - os;
+      const bool on_a = std::abs(da) <= eps, on_b = std::abs(db) <= eps;
       if (on_a && on_b) contacts.push_back({a, b});
       else if (on_a) contacts.push_back({a, a});
+      else if (!on_b && (da > 0) != (db > 0)) {
+        const Vec3 x = a + (b - a) * (da / (da - db));  // all on the line where q's plane meets the source's
+        if (crossings == 0) first = lo = hi = x;
+        if (crossings == 1) dir = x - first;
+        const double along = dir.dot(x - first);
+        if (along < tlo) tlo = along, lo = x;
+        if (along > thi) thi = along, hi = x;
+        ++crossings;
+      }
     }
+    if (crossings > 0) contacts.push_back({lo, hi});
   }
   auto contact_of = [&](const std::array<Vec3, 4>& v) -> const std::array<Vec3, 2>* {
     for (const auto& c : contacts)
