@@ -1029,5 +1029,88 @@ TEST(ExactVisibilityNumerics, OccluderThroughTheSourcesPlaneStaysWithinTheErrorE
   }
 }
 
+// Two plates in different planes hide the ceiling from the floor together (every segment meets one of them; neither
+// alone hides it, and they are no convex solid), with two small plates that hide nothing of their own: the pair is
+// proven hidden by their fused extended projections, without one point of the outer rule.
+TEST(ExactVisibilityNumerics, SeveralOccludersTogetherHideThePairWithoutIntegrating) {
+  const Poly s = rect(2, 0, 0, 1, 0, 1, true), t = rect(2, 3, 0, 1, 0, 1, false);
+  // At height z a segment from x_s to x_t is at x_s + (x_t - x_s) z / 3: at z = 2.8 at most 1/15 + 0.9333 x_t, so
+  // the plate x <= 0.55 there stops every segment to x_t <= 0.5; at z = 2.6 at least 0.8667 x_t, so the plate
+  // x >= 0.38 there stops every segment to x_t >= 0.45.
+  const std::vector<Poly> polys = {rect(2, 2.8, -2, 0.55, -2, 3, true), rect(2, 2.6, 0.38, 3, -2, 3, true),
+                                   rect(2, 2.0, 0.2, 0.3, 0.2, 0.3, true), rect(2, 0.5, 0.6, 0.7, 0.6, 0.7, true)};
+  std::vector<ff::detail::Occluder> occ;
+  for (const Poly& q : polys) occ.push_back({std::span<const Vec3>(q), true});
+  auto scratch = ff::detail::make_exact_scratch();
+  const Vec3 nz(0, 0, 1);
+  for (size_t k = 0; k < 2; ++k) {  // neither big plate hides the pair alone
+    const ff::detail::ExactPairResult alone =
+        ff::detail::exact_hidden_pair(s, nz, 1.0, true, t, -nz, true, std::span(occ).subspan(k, 1), 1e-8, 6, *scratch);
+    EXPECT_EQ(alone.outcome, ff::detail::ExactPairResult::kIntegrated) << "plate " << k << " alone";
+  }
+  const ff::detail::ExactPairResult r = ff::detail::exact_hidden_pair(s, nz, 1.0, true, t, -nz, true, occ, 1e-8, 6, *scratch);
+  EXPECT_EQ(r.outcome, ff::detail::ExactPairResult::kHidden) << "H " << r.H << " after " << r.points << " points";
+  EXPECT_EQ(r.points, 0);
+  EXPECT_LE(r.error, 1e-12);
+  const ff::PairResult v = ff::visible_polygon_to_polygon(s, t, polys, 1e-8);
+  EXPECT_EQ(v.F, 0.0);
+}
+
+// The fused proof must never call a pair hidden when a segment between them is free. Random convex elements of a floor,
+// a ceiling target and 2-6 random plates (tilted, at random heights); wherever the proof says hidden, 4,000 random
+// segments between the element and the target are each checked to cross a plate (a segment-polygon test independent
+// of the proof). Some trials must be proven and some not, or the test says nothing.
+TEST(ExactVisibilityNumerics, FusedProofNeverHidesAVisibleSegment) {
+  std::mt19937_64 rng(20261126);
+  std::uniform_real_distribution<double> U(0, 1);
+  const Poly t = {Vec3(-0.5, -0.5, 3), Vec3(-0.5, 1.5, 3), Vec3(1.5, 1.5, 3), Vec3(1.5, -0.5, 3)};  // faces -z
+  auto crosses = [](const Vec3& a, const Vec3& b, const Poly& q) {
+    const Vec3 n = mesh::newell_normal(q).normalized();
+    const double da = n.dot(a - q[0]), db = n.dot(b - q[0]);
+    if (!((da > 0 && db < 0) || (da < 0 && db > 0))) return false;
+    const Vec3 p = a + (b - a) * (da / (da - db));
+    for (size_t k = 0; k < q.size(); ++k)
+      if ((q[(k + 1) % q.size()] - q[k]).cross(p - q[k]).dot(n) <= 0) return false;
+    return true;
+  };
+  auto scratch = ff::detail::make_exact_scratch();
+  int proven = 0, not_proven = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const double x0 = U(rng), y0 = U(rng), w = 0.02 + 0.4 * U(rng), h = 0.02 + 0.4 * U(rng), skew = 0.3 * w * U(rng);
+    const Poly e = {Vec3(x0, y0, 0), Vec3(x0 + w, y0, 0), Vec3(x0 + w + skew, y0 + h, 0), Vec3(x0 + skew, y0 + h, 0)};
+    const int m = 2 + int(U(rng) * 5);
+    std::vector<Poly> plates;
+    for (int k = 0; k < m; ++k) {
+      // A rectangle around a random centre, tilted by up to ~0.3 rad about a random horizontal axis.
+      const Vec3 c(-0.5 + 2 * U(rng), -0.5 + 2 * U(rng), 0.3 + 2.4 * U(rng));
+      const double phi = 2 * M_PI * U(rng), tilt = 0.3 * (2 * U(rng) - 1);
+      const Vec3 a(std::cos(phi), std::sin(phi), 0), b0(-std::sin(phi), std::cos(phi), 0);
+      const Vec3 b = std::cos(tilt) * b0 + std::sin(tilt) * Vec3(0, 0, 1);
+      const double ra = 0.2 + 1.2 * U(rng), rb = 0.2 + 1.2 * U(rng);
+      plates.push_back({c - ra * a - rb * b, c + ra * a - rb * b, c + ra * a + rb * b, c - ra * a + rb * b});
+    }
+    std::vector<ff::detail::Occluder> occ;
+    for (const Poly& q : plates) occ.push_back({std::span<const Vec3>(q), true});
+    const double bound = ff::detail::fused_hidden_bound(e, Vec3(0, 0, 1), t, Vec3(0, 0, -1), occ, 5.0, *scratch);
+    if (!(bound <= 1e-12)) {
+      ++not_proven;
+      continue;
+    }
+    ++proven;
+    for (int k = 0; k < 4000; ++k) {
+      const double s1 = U(rng), s2 = U(rng);
+      const Vec3 a = (1 - s2) * ((1 - s1) * e[0] + s1 * e[1]) + s2 * ((1 - s1) * e[3] + s1 * e[2]);
+      const Vec3 b(-0.5 + 2 * U(rng), -0.5 + 2 * U(rng), 3);
+      bool blocked = false;
+      for (const Poly& q : plates) blocked = blocked || crosses(a, b, q);
+      ASSERT_TRUE(blocked) << "trial " << trial << ": proven hidden (bound " << bound << ") but the segment from ("
+                           << a.transpose() << ") to (" << b.transpose() << ") meets none of " << m << " plates";
+    }
+  }
+  EXPECT_GE(proven, 20) << "too few proofs to test (" << not_proven << " not proven)";
+  EXPECT_GE(not_proven, 20) << "too few failed proofs (" << proven << " proven)";
+  std::printf("fused proofs: %d proven, %d not\n", proven, not_proven);
+}
+
 }  // namespace
 }  // namespace lambert

@@ -69,6 +69,14 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
                                   std::span<const Occluder> candidates, double tol, double scale,
                                   ExactScratch& scratch);
 
+// The proof exact_hidden_pair uses for elements hidden by several occluders together (occluder fusion by extended
+// projections, docs/physics.md section 6): a bound on F(x -> the part of `target` the occluders may leave visible)
+// that holds for every x in the convex hull of `corners` (a convex polygon in the plane with unit normal ns, in front
+// of the target); INFINITY if no proof is found. 0 up to rounding (~1e-16) means hidden from all of it. The target
+// (unit normal nt, facing the corners) must lie in front of the corners' plane.
+double fused_hidden_bound(std::span<const Vec3> corners, const Vec3& ns, std::span<const Vec3> target, const Vec3& nt,
+                          std::span<const Occluder> occluders, double scale, ExactScratch& scratch);
+
 // For tests: the critical lines exact_hidden_pair splits the pair (s -> t) on, as p + u d for u in [t0, t1] on the
 // source's plane (d a unit vector; infinite ends allowed). Empty if the pair is clear, hidden by one occluder, or
 // has too many occluders or lines for them.
