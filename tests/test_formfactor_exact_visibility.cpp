@@ -1059,7 +1059,8 @@ TEST(ExactVisibilityNumerics, SeveralOccludersTogetherHideThePairWithoutIntegrat
 // The fused proof must never call a pair hidden when a segment between them is free. Random convex elements of a floor,
 // a ceiling target and 2-6 random plates (tilted, at random heights); wherever the proof says hidden, 4,000 random
 // segments between the element and the target are each checked to cross a plate (a segment-polygon test independent
-// of the proof). Some trials must be proven and some not, or the test says nothing.
+// of the proof). Some trials must be proven and some not, or the test says nothing. The same scenes 1e6 m from the
+// origin must be proven alike (rounding then scales with the position, not with the scene).
 TEST(ExactVisibilityNumerics, FusedProofNeverHidesAVisibleSegment) {
   std::mt19937_64 rng(20261126);
   std::uniform_real_distribution<double> U(0, 1);
@@ -1074,7 +1075,8 @@ TEST(ExactVisibilityNumerics, FusedProofNeverHidesAVisibleSegment) {
     return true;
   };
   auto scratch = ff::detail::make_exact_scratch();
-  int proven = 0, not_proven = 0;
+  int proven = 0, not_proven = 0, proven_far = 0;
+  const Vec3 far(1e6, -2e6, 3e5);
   for (int trial = 0; trial < 400; ++trial) {
     const double x0 = U(rng), y0 = U(rng), w = 0.02 + 0.4 * U(rng), h = 0.02 + 0.4 * U(rng), skew = 0.3 * w * U(rng);
     const Poly e = {Vec3(x0, y0, 0), Vec3(x0 + w, y0, 0), Vec3(x0 + w + skew, y0 + h, 0), Vec3(x0 + skew, y0 + h, 0)};
@@ -1089,9 +1091,22 @@ TEST(ExactVisibilityNumerics, FusedProofNeverHidesAVisibleSegment) {
       const double ra = 0.2 + 1.2 * U(rng), rb = 0.2 + 1.2 * U(rng);
       plates.push_back({c - ra * a - rb * b, c + ra * a - rb * b, c + ra * a + rb * b, c - ra * a + rb * b});
     }
-    std::vector<ff::detail::Occluder> occ;
+    std::vector<ff::detail::Occluder> occ, occ_far;
     for (const Poly& q : plates) occ.push_back({std::span<const Vec3>(q), true});
+    std::vector<Poly> plates_far = plates;
+    for (Poly& q : plates_far)
+      for (Vec3& p : q) p += far;
+    for (const Poly& q : plates_far) occ_far.push_back({std::span<const Vec3>(q), true});
+    Poly e_far = e, t_far = t;
+    for (Vec3& p : e_far) p += far;
+    for (Vec3& p : t_far) p += far;
     const double bound = ff::detail::fused_hidden_bound(e, Vec3(0, 0, 1), t, Vec3(0, 0, -1), occ, 5.0, *scratch);
+    const double bound_far =
+        ff::detail::fused_hidden_bound(e_far, Vec3(0, 0, 1), t_far, Vec3(0, 0, -1), occ_far, 5.0, *scratch);
+    if (bound_far <= 1e-12) {
+      ++proven_far;
+      EXPECT_LE(bound, 1e-12) << "trial " << trial << ": proven 1e6 m away but not at the origin";
+    }
     if (!(bound <= 1e-12)) {
       ++not_proven;
       continue;
@@ -1109,7 +1124,8 @@ TEST(ExactVisibilityNumerics, FusedProofNeverHidesAVisibleSegment) {
   }
   EXPECT_GE(proven, 20) << "too few proofs to test (" << not_proven << " not proven)";
   EXPECT_GE(not_proven, 20) << "too few failed proofs (" << proven << " proven)";
-  std::printf("fused proofs: %d proven, %d not\n", proven, not_proven);
+  EXPECT_GE(proven_far, proven - 2) << "1e6 m from the origin, " << proven_far << " proven against " << proven;
+  std::printf("fused proofs: %d proven, %d not; %d proven 1e6 m away\n", proven, not_proven, proven_far);
 }
 
 }  // namespace

@@ -816,17 +816,25 @@ double hidden_from_all_of(std::span<const Vec3> corners, std::span<const Vec3> c
   if (mc > 8) return kFail;
   double hmin = INFINITY;
   for (size_t k = 0; k < mc; ++k) {
-    hc[k] = nt.dot(corners[k]) - ot;
+    hc[k] = nt.dot(corners[k] - ct[0]) + (nt.dot(ct[0]) - ot);
     if (!(hc[k] > 1e3 * eps)) return kFail;  // a corner on (or near) the target's plane sees it edge-on
     hmin = std::min(hmin, hc[k]);
   }
-  const Vec3 tc = average(ct);
+  // Occluder pieces and corners are moved to an origin at the target's first corner before they are clipped and
+  // projected: the rounding then scales with the scene, not with where it sits (a model 1e6 m from the origin); the
+  // planes' offsets, computed once from absolute coordinates, keep a margin of that rounding.
+  const Vec3 o3 = ct[0];
+  const double os_l = os - ns.dot(o3), ot_l = ot - nt.dot(o3);
+  const double at = 4e-16 * (o3.cwiseAbs().maxCoeff() + scale);
+  Vec3 cl[8];
+  for (size_t k = 0; k < mc; ++k) cl[k] = corners[k] - o3;
+  const Vec3 tc = average(ct) - o3;
   Vec3 u = Vec3::Zero();
   for (size_t k = 0; k < mt && !(u.squaredNorm() > 0); ++k) u = ct[(k + 1) % mt] - ct[k];
   u.normalize();
   const Vec3 v = nt.cross(u);
   double R = 0;
-  for (const Vec3& p : ct) R = std::max({R, std::abs(u.dot(p - tc)), std::abs(v.dot(p - tc))});
+  for (const Vec3& p : ct) R = std::max({R, std::abs(u.dot(p - o3 - tc)), std::abs(v.dot(p - o3 - tc))});
   if (!(R > 0)) return kFail;
   const double box = 1.5 * R;  // extended projections are cut to this square around the target (bounded coordinates)
   const double delta = 4 * R / kSnap + 1e-8 * scale;
@@ -840,22 +848,23 @@ double hidden_from_all_of(std::span<const Vec3> corners, std::span<const Vec3> c
   std::vector<Vec3> piece;
   auto add_piece = [&](std::span<const Vec3> poly) {
     // In front of the source's plane and the target's (strictly: a point on either plane blocks nothing).
-    S.a.assign(poly.begin(), poly.end());
-    clip_keep(S.a, ns, os + eps, S.b);
-    clip_keep(S.b, nt, ot + eps, S.a);
+    S.a.clear();
+    for (const Vec3& q : poly) S.a.push_back(q - o3);
+    clip_keep(S.a, ns, os_l + eps + at, S.b);
+    clip_keep(S.b, nt, ot_l + eps + at, S.a);
     if (S.a.empty()) return;
     X = square;
     for (size_t k = 0; k < mc && !X.empty(); ++k) {
       // Nearer to the target's plane than the corner (what a segment from it can meet), magnification <= 1e4.
-      clip_keep(S.a, -nt, -(ot + hc[k] * (1 - 1e-4)), S.b);
+      clip_keep(S.a, -nt, -(ot_l + hc[k] * (1 - 1e-4)), S.b);
       if (S.b.empty()) {
         X.clear();
         break;
       }
       P.clear();
       for (const Vec3& q : S.b) {
-        const double hq = nt.dot(q) - ot;
-        const Vec3 y = corners[k] + (q - corners[k]) * (hc[k] / (hc[k] - hq));
+        const double hq = nt.dot(q) - ot_l;
+        const Vec3 y = cl[k] + (q - cl[k]) * (hc[k] / (hc[k] - hq));
         P.push_back({u.dot(y - tc), v.dot(y - tc)});
       }
       if (signed_area(P) < 0) std::reverse(P.begin(), P.end());
@@ -897,7 +906,7 @@ double hidden_from_all_of(std::span<const Vec3> corners, std::span<const Vec3> c
   // The target, counter-clockwise in (u, v). If convex, it is moved outwards by 1.5 units before it is snapped (each
   // corner along its miter), so its snapped polygon contains it; else the band its snapping may lose is added below.
   X.clear();
-  for (const Vec3& p : ct) X.push_back({u.dot(p - tc), v.dot(p - tc)});
+  for (const Vec3& p : ct) X.push_back({u.dot(p - o3 - tc), v.dot(p - o3 - tc)});
   if (signed_area(X) < 0) std::reverse(X.begin(), X.end());
   drop_short_edges(X, 1e-9 * R);
   if (X.size() < 3) return kFail;
