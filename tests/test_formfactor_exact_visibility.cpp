@@ -1054,6 +1054,10 @@ TEST(ExactVisibilityNumerics, SeveralOccludersTogetherHideThePairWithoutIntegrat
   EXPECT_LE(r.error, 1e-12);
   const ff::PairResult v = ff::visible_polygon_to_polygon(s, t, polys, 1e-8);
   EXPECT_EQ(v.F, 0.0);
+  // A sliver target inside the ceiling (a corner of 1e-9 rad: its grown outline must stay within Clipper's range).
+  const Poly sliver = {Vec3(0.1, 0.5, 3), Vec3(0.9, 0.5 + 0.8e-9, 3), Vec3(0.9, 0.5, 3)};  // faces -z
+  const double b = ff::detail::fused_hidden_bound(s, nz, sliver, -nz, occ, 6, *scratch);
+  EXPECT_LE(b, 1e-12) << "the sliver is hidden as the whole ceiling is";
 }
 
 // The fused proof must never call a pair hidden when a segment between them is free. Random convex elements of a floor,

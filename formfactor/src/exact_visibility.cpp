@@ -788,8 +788,8 @@ void drop_short_edges(Poly2& p, double tol) {
 void intersect_convex(Poly2& x, const Poly2& c, Poly2& tmp) {
   for (size_t k = 0; k < c.size() && !x.empty(); ++k) {
     const auto &a = c[k], &b = c[(k + 1) % c.size()];
-    // Inside (left of a -> b): (b - a) x (p - a) >= 0, i.e. (ay - by) px + (bx - ax) py <= ... written as a . p <= b.
-    const double nx = b[1] - a[1], ny = a[0] - b[0];  // outward normal of a counter-clockwise edge
+    // Inside: left of the edge a -> b, i.e. n . p <= n . a with n its outward normal.
+    const double nx = b[1] - a[1], ny = a[0] - b[0];
     clip_half_plane(x, nx, ny, nx * a[0] + ny * a[1], tmp);
     std::swap(x, tmp);
   }
@@ -806,8 +806,9 @@ void intersect_convex(Poly2& x, const Poly2& c, Poly2& tmp) {
 // the pieces' extended projections covers the target, the pair (element, target) is hidden, exactly. Non-convex
 // occluders enter as their triangles. Conservative under rounding: each extended projection is shrunk by 4 of
 // Clipper's units plus 1e-8 of the scene (the float error of projections magnified up to 1e4) before it is snapped,
-// so its snapped polygon lies inside it, and the snapped target must be covered by their union (corners of the target
-// within 1e-9 of its size of their neighbour are dropped; its growth by 1.5 units, 2.8e-9 of its size, covers them).
+// so its snapped polygon lies inside it, and the snapped target, grown by 1.5 units, must be covered by their union
+// (corners of the target within 1e-9 of its size of their neighbour are dropped; the growth, 2.8e-9 of its size,
+// covers them).
 double hidden_from_all_of(std::span<const Vec3> corners, std::span<const Vec3> ct, const Vec3& ns, double os,
                           const Vec3& nt, double ot, std::span<const Occluder> occ, double eps, double scale,
                           ExactScratch& S) {
@@ -927,8 +928,23 @@ double hidden_from_all_of(std::span<const Vec3> corners, std::span<const Vec3> c
       double n1x = b[1] - a[1], n1y = a[0] - b[0], n2x = c[1] - b[1], n2y = b[0] - c[0];  // outward normals
       const double l1 = std::hypot(n1x, n1y), l2 = std::hypot(n2x, n2y);
       n1x /= l1, n1y /= l1, n2x /= l2, n2y /= l2;
-      const double m = grow / (1 + n1x * n2x + n1y * n2y);  // miter: b + grow (n1 + n2) / (1 + n1 . n2)
-      S.clip_path.push_back({snap(b[0] + m * (n1x + n2x)), snap(b[1] + m * (n1y + n2y))});
+      const double c12 = n1x * n2x + n1y * n2y;
+      if (c12 >= -0.5) {  // miter: b + grow (n1 + n2) / (1 + n1 . n2), at most 2 grow from b
+        const double m = grow / (1 + c12);
+        S.clip_path.push_back({snap(b[0] + m * (n1x + n2x)), snap(b[1] + m * (n1y + n2y))});
+      } else {
+        // A sharp corner (under 60 degrees): its miter would run far out (to infinity for a sliver, beyond Clipper's
+        // range); bevelled instead through b + 2 grow n1, b + 2 grow n, b + 2 grow n2 (n the bisector), whose chords
+        // pass at least 2 grow cos(45 degrees) > grow from b.
+        double bx = n1x + n2x, by = n1y + n2y;
+        const double lb = std::hypot(bx, by);
+        if (lb > 0) bx /= lb, by /= lb;
+        else bx = b[0] - 0.5 * (a[0] + c[0]), by = b[1] - 0.5 * (a[1] + c[1]);  // a spike: along it
+        const double g2 = 2 * grow, lbb = std::hypot(bx, by);
+        S.clip_path.push_back({snap(b[0] + g2 * n1x), snap(b[1] + g2 * n1y)});
+        if (lbb > 0) S.clip_path.push_back({snap(b[0] + g2 * bx / lbb), snap(b[1] + g2 * by / lbb)});
+        S.clip_path.push_back({snap(b[0] + g2 * n2x), snap(b[1] + g2 * n2y)});
+      }
     }
   } else {
     for (const auto& p : X) S.clip_path.push_back({snap(p[0]), snap(p[1])});
