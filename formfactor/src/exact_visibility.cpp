@@ -159,7 +159,20 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
     if (cull && o.cull && o.inner.dot(x) >= o.inner_offset) continue;
     S.a.assign(o.poly.begin(), o.poly.end());
     for (const auto& pl : S.planes) {
-      clip_keep(S.a, Vec3(pl[0], pl[1], pl[2]), pl[3], S.b);
+      // Most planes keep the whole polygon (or none of it): decided before clip_keep copies anything.
+      const Vec3 m(pl[0], pl[1], pl[2]);
+      bool all_in = true, all_out = true;
+      for (const Vec3& q : S.a) {
+        const double d = m.dot(q) - pl[3];
+        all_in = all_in && d >= 0;
+        all_out = all_out && d <= 0;
+      }
+      if (all_in) continue;
+      if (all_out) {
+        S.a.clear();
+        break;
+      }
+      clip_keep(S.a, m, pl[3], S.b);
       std::swap(S.a, S.b);
       if (S.a.empty()) break;
     }
@@ -329,17 +342,23 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
     for (size_t k = 0; k < P.size(); ++k) {
       const Vec3 &a = P[k], &b = P[(k + 1) % P.size()];
       for (const Vec3& c : Q) {
-        Vec3 m = (b - a).cross(c - a);
+        const Vec3 m = (b - a).cross(c - a);
         const double len = m.norm();
         if (!(len > 0)) continue;
-        m /= len;
-        double lo = INFINITY, hi = -INFINITY;
+        // Unnormalised: the side tests compare with eps * len, and stop at the first point on each side (most
+        // candidate planes cut the hull).
+        const double e = eps * len;
+        bool above = false, below = false;
         for (const Vec3& p : S.pts) {
           const double d = m.dot(p - a);
-          lo = std::min(lo, d), hi = std::max(hi, d);
+          above = above || d > e;
+          below = below || d < -e;
+          if (above && below) break;
         }
-        if (hi <= eps) S.hull.push_back({m.x(), m.y(), m.z(), m.dot(a)});
-        else if (lo >= -eps) S.hull.push_back({-m.x(), -m.y(), -m.z(), -m.dot(a)});
+        if (above && below) continue;
+        const Vec3 u = m / len;
+        if (!above) S.hull.push_back({u.x(), u.y(), u.z(), u.dot(a)});
+        else S.hull.push_back({-u.x(), -u.y(), -u.z(), -u.dot(a)});
       }
     }
   };
