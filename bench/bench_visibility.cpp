@@ -123,11 +123,11 @@ int main(int argc, char** argv) {
     sq += e * e;
   }
   std::printf("patches %d method %s rays %d wall %.2f s cpu %.2f s max|rowsum-1| %.3e (patch %d) rms %.3e "
-              "shaft_culled %lld ray_tested %lld exact clear/hidden/integrated %lld/%lld/%lld points %lld over_tol %lld "
-              "t_exact %.2f t_rays %.2f\n",
+              "shaft_culled %lld ray_tested %lld exact clear/hidden/integrated %lld/%lld/%lld plane_hidden/tests "
+              "%lld/%lld points %lld over_tol %lld t_exact %.2f t_rays %.2f\n",
               g.size(), argv[a], o.rays_per_pair, wall, cpu, mx, worst, std::sqrt(sq / std::max(1, g.size())),
               st.pairs_shaft_culled, st.pairs_ray_tested, st.pairs_exact_clear, st.pairs_exact_hidden,
-              st.pairs_exact_integrated, st.exact_points, st.pairs_exact_over_tolerance, st.seconds["visibility_exact"],
-              st.seconds["visibility_rays"]);
+              st.pairs_exact_integrated, st.pairs_plane_hidden, st.plane_tests, st.exact_points,
+              st.pairs_exact_over_tolerance, st.seconds["visibility_exact"], st.seconds["visibility_rays"]);
   return 0;
 }

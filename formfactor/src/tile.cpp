@@ -376,7 +376,6 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                   tree_.collect(sh, i, j, b.cand);
                   pair_occluders(g_, pr.P, scale_, b.cand, i, j, merged_, convex_, b.merged_ids, b.occ);
                   // A wall or slab of several occluders hiding the pair entirely: proven without integrating.
-                  ++c.plane_tests;
                   const double eps = 1e-9 * scale_;
                   const TouchingCheck touching_ok = [&](const Vec3& nn, double oo) {
                     return !lies_in_plane_facing(g_, i, nn, oo, eps) && !lies_in_plane_facing(g_, j, -nn, -oo, eps);
@@ -388,6 +387,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                     one_convex = true;
                     for (const Occluder& o : b.occ) one_convex = one_convex && o.solid == b.occ[0].solid;
                   }
+                  c.plane_tests += !one_convex;
                   if (!one_convex &&
                       hidden_by_plane(g_.polygon(i), g_.polygon(j), g_, plane_of_, b.cand, eps, *b.sep, touching_ok) >= 0) {
                     ++c.exact_hidden;
