@@ -97,7 +97,7 @@ Problem obj(const std::string& path, bool sky) {
 
 int main(int argc, char** argv) {
   bool dense = false, sky = false, two_pass = false;
-  double tol = 1e-3;
+  double tol = 1e-3, entry_tol = 0;
   int threads = 0;
   std::string kind, arg;
   for (int k = 1; k < argc; ++k) {
@@ -106,11 +106,13 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[k], "--two-pass")) two_pass = true;
     else if (!std::strcmp(argv[k], "--tolerance") && k + 1 < argc) tol = std::atof(argv[++k]);
     else if (!std::strcmp(argv[k], "--threads") && k + 1 < argc) threads = std::atoi(argv[++k]);
+    else if (!std::strcmp(argv[k], "--entry-tolerance") && k + 1 < argc) entry_tol = std::atof(argv[++k]);
     else if (kind.empty()) kind = argv[k];
     else arg = argv[k];
   }
   if (kind.empty() || arg.empty()) {
-    std::fprintf(stderr, "usage: bench_hierarchy [--dense] [--tolerance T] [--threads K] cube N | obj PATH [--sky]\n");
+    std::fprintf(stderr, "usage: bench_hierarchy [--dense] [--tolerance T] [--entry-tolerance E] [--threads K] cube N | obj PATH "
+                 "[--sky]\n");
     return 1;
   }
   std::optional<tbb::global_control> gc;
@@ -126,6 +128,7 @@ int main(int argc, char** argv) {
   formfactor::HierarchyOptions ho;
   ho.tolerance = tol;
   ho.max_reflectance = rho_max;
+  ho.entry_tolerance = entry_tol;
   formfactor::HierarchyStats hs;
   if (two_pass) {
     // Brightness from a first solve at 10x the tolerance: links from what turned out dark are accepted coarser.

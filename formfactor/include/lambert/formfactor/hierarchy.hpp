@@ -60,7 +60,9 @@ struct HierarchyOptions {
   // Per patch: an upper estimate of its radiance (any unit, >= 0), e.g. a previous solve's; empty = all equal
   // (pure geometric refinement). Links from dark clusters are accepted coarser.
   std::vector<double> brightness;
-  double entry_tolerance = 0;  // per-entry tolerance of the exact leaf pairs (formfactor::Options::tolerance); 0 = auto
+  // Per-entry tolerance of the exact leaf pairs (F units, as formfactor::Options::tolerance); 0 = auto: the dense
+  // assembly's automatic tolerance, or 1e-3 of the link tolerance if that is larger.
+  double entry_tolerance = 0;
   double max_reflectance = -1;
   bool visibility = true;
   // Patch pairs that may be occluded: rays, or exact (occluders clipped out of the contour integral, as the dense
