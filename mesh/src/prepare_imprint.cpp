@@ -269,16 +269,21 @@ std::vector<std::vector<int>> split_face(const PolygonSoup& s, int k, const Face
       const auto& p = v->point();
       v->info().index = index.find_or_add(f.poly[0] + p.x() * f.u + p.y() * f.v);
     }
-  // Triangles inside the face, grouped into regions bounded by constraints.
-  std::map<CDT::Face_handle, int> region;
+  // Triangles inside the face, grouped into regions bounded by constraints. Regions are numbered in the
+  // triangulation's order (`inside`), not in the map's: its keys are handles, ordered by address, and the pieces (their
+  // order, their first corner) then depended on where the allocator had put the faces: the first mesh::prepare of a
+  // process gave other soups than the next ones (examples/floorplan.obj: a face reversed, vertices renumbered).
+  std::map<CDT::Face_handle, int> region;  // lookups only
+  std::vector<CDT::Face_handle> inside;
   std::vector<std::vector<CDT::Face_handle>> regions;
   for (auto fh = cdt.finite_faces_begin(); fh != cdt.finite_faces_end(); ++fh) {
     const auto c = CGAL::centroid(fh->vertex(0)->point(), fh->vertex(1)->point(), fh->vertex(2)->point());
     if (CGAL::bounded_side_2(outline.begin(), outline.end(), c, K()) != CGAL::ON_BOUNDED_SIDE) continue;
     region[fh] = -1;
+    inside.push_back(fh);
   }
-  for (auto& [start, r0] : region) {
-    if (r0 >= 0) continue;
+  for (const CDT::Face_handle& start : inside) {
+    if (region[start] >= 0) continue;
     const int r = static_cast<int>(regions.size());
     regions.emplace_back();
     std::vector<CDT::Face_handle> stack{start};
