@@ -2,6 +2,9 @@
 // surface are made to agree (majority), and a whole surface is flipped only when rays show that
 // the rest of the scene sees its back (cf. Takayama, Jacobson, Kavan, Sorkine-Hornung 2014,
 // visibility-based mesh orientation). See prepare.hpp, step 3.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -161,33 +164,48 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
     const long m = static_cast<long>(C.members[C.comp[k]].size());
     rays_per_side[k] = static_cast<int>(std::clamp<long>((kRaysPerSurface + m - 1) / m, kRaysPerSide, 128));
   }
-  for (int k = 0; k < nf; ++k) {
-    if (!rays.has(k)) continue;
-    std::mt19937_64 rng(0x9E3779B97F4A7C15ull ^ std::uint64_t(k) * 0xBF58476D1CE4E5B9ull);
-    const Vec3 n = rays.normal(k) * (flip[k] ? -1.0 : 1.0);
-    const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
-    for (int r = 0; r < rays_per_side[k]; ++r) {
-      const Vec3 o = rays.sample(k, rng);
-      const Vec3 d = cosine_direction(n, rng);
-      for (int side = 0; side < 2; ++side) {
-        const Vec3 dir = side == 0 ? d : Vec3(-d);
-        auto h = rays.first(o, dir, [k](int f) { return f == k; });
-        if (h.face < 0) continue;
-        if (C.comp[h.face] != C.comp[k]) {
-          // A face of its own surface at the same distance (a block's bottom on the floor) is hit first:
-          // the ray ends inside its own surface, it is no evidence.
-          const int c = C.comp[k];
-          const auto own = rays.first(o, dir, [&](int f) { return f == k || C.comp[f] != c; });
-          if (own.face >= 0 && own.t <= h.t * (1 + 1e-9) + 1e-12) h = own;
-        }
-        cast.push_back({k, h.face, side == 0, h.front});
-        if (several && C.comp[h.face] != C.comp[k]) {
-          const int c = C.comp[k];
-          (side == 0 ? evidence_front : evidence_back)[c] += area;
-          if (side == 1) ++back_rays[c];
+  // Faces in parallel (each draws from its own seeded generator), merged in face order: the same result for any
+  // thread count. Per face: its rays, and how many leaving each side reached another surface (evidence).
+  struct FaceRays {
+    std::vector<Ray> cast;
+    int evidence[2] = {0, 0};
+  };
+  std::vector<FaceRays> per_face(static_cast<size_t>(nf));
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, 64), [&](const tbb::blocked_range<int>& range) {
+    for (int k = range.begin(); k < range.end(); ++k) {
+      if (!rays.has(k)) continue;
+      FaceRays& out = per_face[static_cast<size_t>(k)];
+      std::mt19937_64 rng(0x9E3779B97F4A7C15ull ^ std::uint64_t(k) * 0xBF58476D1CE4E5B9ull);
+      const Vec3 n = rays.normal(k) * (flip[k] ? -1.0 : 1.0);
+      for (int r = 0; r < rays_per_side[k]; ++r) {
+        const Vec3 o = rays.sample(k, rng);
+        const Vec3 d = cosine_direction(n, rng);
+        for (int side = 0; side < 2; ++side) {
+          const Vec3 dir = side == 0 ? d : Vec3(-d);
+          auto h = rays.first(o, dir, [k](int f) { return f == k; });
+          if (h.face < 0) continue;
+          if (C.comp[h.face] != C.comp[k]) {
+            // A face of its own surface at the same distance (a block's bottom on the floor) is hit first:
+            // the ray ends inside its own surface, it is no evidence.
+            const int c = C.comp[k];
+            const auto own = rays.first(o, dir, [&](int f) { return f == k || C.comp[f] != c; });
+            if (own.face >= 0 && own.t <= h.t * (1 + 1e-9) + 1e-12) h = own;
+          }
+          out.cast.push_back({k, h.face, side == 0, h.front});
+          if (several && C.comp[h.face] != C.comp[k]) ++out.evidence[side];
         }
       }
     }
+  });
+  for (int k = 0; k < nf; ++k) {
+    const FaceRays& fr = per_face[static_cast<size_t>(k)];
+    if (fr.cast.empty()) continue;
+    cast.insert(cast.end(), fr.cast.begin(), fr.cast.end());
+    const int c = C.comp[k];
+    const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
+    evidence_front[c] += area * fr.evidence[0];
+    evidence_back[c] += area * fr.evidence[1];
+    back_rays[c] += fr.evidence[1];
   }
 
   std::vector<int> surface_flip(nc, 0);
