@@ -156,16 +156,15 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
     bool from_front;  // leaves the face's current front side
     bool hit_front;   // arrives at the hit face's file front side
   };
-  std::vector<Ray> cast;
-  cast.reserve(size_t(nf) * 2 * kRaysPerSide);
   const bool several = nc > 1;
   std::vector<int> rays_per_side(nf, kRaysPerSide);
   for (int k = 0; k < nf; ++k) {
     const long m = static_cast<long>(C.members[C.comp[k]].size());
     rays_per_side[k] = static_cast<int>(std::clamp<long>((kRaysPerSurface + m - 1) / m, kRaysPerSide, 128));
   }
-  // Faces in parallel (each draws from its own seeded generator), merged in face order: the same result for any
-  // thread count. Per face: its rays, and how many leaving each side reached another surface (evidence).
+  // Faces in parallel (each draws from its own seeded generator), read in face order: the same result for any
+  // thread count. Per face: its rays (kept per face, not copied into one list: a million faces cast ~1e8), and how
+  // many leaving each side reached another surface (evidence).
   struct FaceRays {
     std::vector<Ray> cast;
     int evidence[2] = {0, 0};
@@ -200,7 +199,6 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
   for (int k = 0; k < nf; ++k) {
     const FaceRays& fr = per_face[static_cast<size_t>(k)];
     if (fr.cast.empty()) continue;
-    cast.insert(cast.end(), fr.cast.begin(), fr.cast.end());
     const int c = C.comp[k];
     const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
     evidence_front[c] += area * fr.evidence[0];
@@ -260,14 +258,15 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
 
   // Hint: one-sided faces whose back reaches front sides more often than their front does.
   std::vector<int> front_lit(nf, 0), back_lit(nf, 0);
-  for (const Ray& r : cast) {
-    const int fh = flip[r.hit] ^ surface_flip[C.comp[r.hit]];
-    // r.from_front is relative to the majority orientation; a surface flip swaps it.
-    const bool from_front = r.from_front != bool(surface_flip[C.comp[r.face]]);
-    const bool lit = s.materials[s.faces[r.hit].material].two_sided || (r.hit_front != bool(fh));
-    if (!lit) continue;
-    (from_front ? front_lit : back_lit)[r.face]++;
-  }
+  for (const FaceRays& fr : per_face)
+    for (const Ray& r : fr.cast) {
+      const int fh = flip[r.hit] ^ surface_flip[C.comp[r.hit]];
+      // r.from_front is relative to the majority orientation; a surface flip swaps it.
+      const bool from_front = r.from_front != bool(surface_flip[C.comp[r.face]]);
+      const bool lit = s.materials[s.faces[r.hit].material].two_sided || (r.hit_front != bool(fh));
+      if (!lit) continue;
+      (from_front ? front_lit : back_lit)[r.face]++;
+    }
   std::vector<int> behind;
   for (int k = 0; k < nf; ++k)
     if (!s.materials[s.faces[k].material].two_sided && back_lit[k] > 2 * front_lit[k] &&
