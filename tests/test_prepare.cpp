@@ -20,6 +20,7 @@ using namespace lambert::mesh;
 
 namespace {
 
+using lambert::mesh::test_util::expect_same_soup;
 using lambert::mesh::test_util::soup_of;
 
 // Indexed soup from polygons, identical coordinates sharing one vertex.
@@ -441,15 +442,7 @@ TEST(PrepareRepeatable, SameSoupWhenPreparedTwiceInOneProcess) {
   const PolygonSoup b = prepare(in, {}, r2);
   ASSERT_GT(count(r1, "faces_imprinted"), 0) << "the scene no longer splits faces";
   EXPECT_EQ(r1.counts, r2.counts);
-  ASSERT_EQ(a.positions.size(), b.positions.size());
-  for (size_t v = 0; v < a.positions.size(); ++v)
-    ASSERT_TRUE(a.positions[v] == b.positions[v]) << "vertex " << v << ": " << a.positions[v].transpose() << " vs "
-                                                  << b.positions[v].transpose();
-  ASSERT_EQ(a.faces.size(), b.faces.size());
-  for (size_t f = 0; f < a.faces.size(); ++f) {
-    ASSERT_EQ(a.faces[f].vertices, b.faces[f].vertices) << "face " << f << " (input face " << a.faces[f].origin << ")";
-    ASSERT_EQ(a.faces[f].origin, b.faces[f].origin) << "face " << f;
-  }
+  expect_same_soup(a, b);
 }
 
 // The orientation rays and the hidden-fragment rays are cast for all faces in parallel; every face draws from its
@@ -466,9 +459,5 @@ TEST(PrepareRepeatable, SameSoupForAnyThreadCount) {
   ASSERT_GT(count(r1, "hidden_fragments_removed"), 0) << "the scene no longer exercises the hidden-fragment rays";
   EXPECT_EQ(r1.counts, r4.counts);
   EXPECT_EQ(r1.warnings, r4.warnings);
-  ASSERT_EQ(a.positions.size(), b.positions.size());
-  for (size_t v = 0; v < a.positions.size(); ++v)
-    ASSERT_TRUE(a.positions[v] == b.positions[v]) << "vertex " << v;
-  ASSERT_EQ(a.faces.size(), b.faces.size());
-  for (size_t f = 0; f < a.faces.size(); ++f) ASSERT_EQ(a.faces[f].vertices, b.faces[f].vertices) << "face " << f;
+  expect_same_soup(a, b);
 }

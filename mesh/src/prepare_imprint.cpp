@@ -21,9 +21,9 @@
 #include <CGAL/Polygon_2_algorithms.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 #include <CGAL/box_intersection_d.h>
+#include <CGAL/intersections.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <CGAL/intersections.h>
 
 #include "prepare_internal.hpp"
 #include "soup_rays.hpp"
