@@ -196,6 +196,7 @@ OperatorChoice choose_operator(const CommonOptions& o, int n, double rho_max) {
 formfactor::HierarchyOptions hierarchy_options(const CommonOptions& o, const mesh::Scene& scene, Progress* progress,
                                                const ColorField* emission = nullptr) {
   formfactor::HierarchyOptions h = o.hierarchy;
+  h.enclosures = o.enclosures == "on";
   const double rho_max = max_reflectance(scene.materials);
   h.entry_tolerance = o.ff.tolerance;
   h.max_reflectance = rho_max;
@@ -416,6 +417,10 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                       {"pairs_exact_integrated", h.pairs_exact_integrated}, {"exact_points", h.exact_points},
                       {"pairs_exact_over_tolerance", h.pairs_exact_over_tolerance},
                       {"pairs_shaft_clear", h.pairs_shaft_clear},
+                      {"enclosures", {{"surfaces", h.enclosures}, {"patches_crossing", h.cell_crossed},
+                                      {"surface_patches", h.enclosure_patches}, {"cells", h.cells},
+                                      {"patches_of_unknown_cell", h.cell_unknown}, {"pairs_refused", h.pairs_cell_culled},
+                                      {"seconds", h.seconds_enclosures}}},
                       {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
                       {"radiance_error_max", h.radiance_error_max},
                       {"row_visibility_sigma_max", h.row_visibility_sigma_max}, {"bytes", h.bytes},
@@ -496,6 +501,14 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                      h.pairs_shaft_clear, h.rays_cast,
                      h.tolerance, h.link_tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
                      per_level.empty() ? "-" : per_level);
+    if (h.enclosures > 0)
+      s += fmt::format("  enclosures   {} closed surfaces ({} patches): {} cells{}; {} node pairs facing different cells "
+                       "refused without rays ({:.2f} s)\n",
+                       h.enclosures, h.enclosure_patches, h.cells,
+                       h.cell_unknown ? fmt::format(" ({} patches of no known cell, {} of them crossing a surface)",
+                                                    h.cell_unknown, h.cell_crossed)
+                                      : "",
+                       h.pairs_cell_culled, h.seconds_enclosures);
     const long long exact = h.pairs_exact_clear + h.pairs_exact_hidden + h.pairs_exact_integrated;
     if (exact > 0)
       s += fmt::format("  visibility   {}: {} patch pairs exact ({} proven clear, {} hidden, {} integrated at {} points{}); "

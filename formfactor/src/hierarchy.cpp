@@ -13,6 +13,7 @@
 #include <string>
 
 #include "hierarchy_internal.hpp"
+#include "enclosures.hpp"
 #include "exact_visibility.hpp"
 #include "sampling.hpp"
 
@@ -148,7 +149,7 @@ struct LeafRecord {
 struct Local {
   std::vector<FarRecord> far;
   std::vector<LeafRecord> leaf;
-  long long culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
+  long long culled = 0, cell_culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   detail::SampleBuffers sb;
   std::vector<Vec3> pa, pb;
@@ -165,6 +166,9 @@ constexpr int kMaxBlockedRays = 256;
 constexpr double kAbsolute = 0.002;
 // Automatic per-entry tolerance of the leaf pairs, as a fraction of the link tolerance (build_hierarchy).
 constexpr double kEntryShare = 1e-3;
+// Contact distance of the closed-surface search, relative to the scene's bounding-box diagonal (mesh::prepare's
+// default weld tolerance: edges this close are one edge, gaps this narrow are closed).
+constexpr double kEnclosureEps = 1e-6;
 
 struct VisResult {
   double V = 1, uncertainty = 0;
@@ -213,7 +217,25 @@ class Refiner {
       }
     }
     total_ = 0.5 * d_.nodes[0].area * d_.nodes[0].area;
-    (void)st;
+    // Cells of the closed surfaces, per node: the common cell of its patches, or -1.
+    node_cell_.assign(d_.nodes.size(), -1);
+    if (occlusion_ && o_.enclosures) {
+      Eigen::AlignedBox3d box;
+      for (const Vec3& v : g_.points) box.extend(v);
+      const detail::Enclosures enc = detail::find_enclosures(g_, kEnclosureEps * box.diagonal().norm());
+      st.enclosures = enc.surfaces;
+      st.cell_crossed = enc.crossed;
+      st.enclosure_patches = enc.surface_patches;
+      st.cells = enc.cells;
+      st.cell_unknown = enc.unknown;
+      st.seconds_enclosures = enc.seconds;
+      if (enc.surfaces > 0)
+        for (int k = int(d_.nodes.size()) - 1; k >= 0; --k) {
+          const HNode& nd = d_.nodes[k];
+          node_cell_[k] = nd.leaf() ? enc.cell[d_.perm[nd.begin]]
+                                    : (node_cell_[nd.left] == node_cell_[nd.right] ? node_cell_[nd.left] : -1);
+        }
+    }
   }
 
   void run() { refine(0, 0); }
@@ -296,6 +318,11 @@ class Refiner {
     Local& loc = locals.local();
     if (faces_away(A, B) || faces_away(B, A)) {
       ++loc.culled;
+      progress(A.area * B.area);
+      return;
+    }
+    if (node_cell_[a] >= 0 && node_cell_[b] >= 0 && node_cell_[a] != node_cell_[b]) {
+      ++loc.cell_culled;
       progress(A.area * B.area);
       return;
     }
@@ -514,6 +541,7 @@ class Refiner {
 
  private:
   std::vector<double> lmax_, cum_;
+  std::vector<int> node_cell_;
   std::vector<Box> pbox_;
   double lref_ = 1;
   std::shared_ptr<const Visibility> caster_;
@@ -637,6 +665,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       far.insert(far.end(), l.far.begin(), l.far.end());
       leaf.insert(leaf.end(), l.leaf.begin(), l.leaf.end());
       st.pairs_culled += l.culled;
+      st.pairs_cell_culled += l.cell_culled;
       st.links_shaft_clear += l.shaft_clear;
       st.links_ray_tested += l.ray_tested;
       st.rays_cast += l.rays;

@@ -71,6 +71,9 @@ struct HierarchyOptions {
   VisibilityMethod visibility_method = VisibilityMethod::Rays;
   int rays_per_pair = 16;      // leaf pairs that may be occluded (as the dense assembly)
   int cluster_rays = 32;       // far links whose shaft may be blocked
+  // Closed surfaces (rooms, apartments, shut boxes; T-junctions allowed) split space into cells; node pairs whose
+  // patches face different cells exchange no light and are refused without rays (with visibility only).
+  bool enclosures = true;
   int threads = 0;             // 0 = all cores
   std::size_t max_bytes = 0;   // refuse to build beyond this (0 = system_memory_limit())
   std::shared_ptr<const Visibility> caster;  // null = Embree over the potential occluders
@@ -85,6 +88,11 @@ struct HierarchyStats {
   long long links_shaft_clear = 0, links_ray_tested = 0, rays_cast = 0;  // cluster pairs tested for a link
   long long pairs_ray_tested = 0, pairs_shaft_clear = 0;  // patch pairs: visibility by rays / proven clear
   long long links_blocked = 0;              // cluster pairs every ray found blocked: no link stored, error admitted
+  long long pairs_cell_culled = 0;          // node pairs refused because their patches face different cells
+  int enclosures = 0, cells = 0;                         // closed surfaces found; cells they split space into
+  long long enclosure_patches = 0, cell_unknown = 0;     // patches on closed surfaces; patches of no known cell
+  long long cell_crossed = 0;                            // of those: crossing (or crossed by) a surface's patch
+  double seconds_enclosures = 0;
   long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;  // exact visibility path
   long long exact_points = 0, pairs_exact_over_tolerance = 0;
   std::vector<long long> far_links_per_level;  // by the level of the deeper node
