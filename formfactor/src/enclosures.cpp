@@ -290,8 +290,8 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
             if (ang > 2 * kPi - kAngleTie) ang = 0;
             loc.around.push_back({ang, g.normal[pf].dot(u.cross(w)) > 0 ? 1 : -1, pf});
           }
-          // Coincident faces (a two-sided face's two patches): the one facing decreasing angle first, so that the
-          // zero-width wedge between them joins their backs.
+          // Coincident faces (a two-sided face's two patches): ordered by the side they face, then by index, so that
+          // the order does not depend on rounding (either consistent order gives the same cells).
           std::sort(loc.around.begin(), loc.around.end(), [](const Member& x, const Member& y) {
             return x.angle < y.angle || (x.angle == y.angle && x.patch < y.patch);
           });
@@ -343,8 +343,9 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
   }
   auto on_surface = [&](int p) { return surf[p][0] >= 0; };
 
-  // 5. Patches crossing a patch of a surface (an edge of one through the interior of the other, both ends more
-  // than eps off its plane): the front of either lies on both sides of some surface, so both get cell -1.
+  // 5. Patches crossing a patch of a surface (an edge of one through the other, both ends more than eps off its
+  // plane), or touched inside by a surface's edge: the front of either lies on both sides of some surface, so both
+  // get cell -1.
   Device dev;
   Scene tris(dev.d);
   std::vector<int> tri_patch;
@@ -377,7 +378,42 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
           const double ha = nq.dot(A - g.centroid[q]), hb = nq.dot(B - g.centroid[q]);
           if (!(ha * hb < 0) || std::min(std::abs(ha), std::abs(hb)) <= eps) continue;
           const Vec3 y = A + (ha / (ha - hb)) * (B - A);
-          if (polygon_side(g.polygon(q), nq, y, eps) > 0) cr.push_back(pe), cr.push_back(q);
+          // Through the interior, or through the boundary (a seam between two of the surface's patches): crossed.
+          if (polygon_side(g.polygon(q), nq, y, eps) >= 0) cr.push_back(pe), cr.push_back(q);
+        }
+      }
+    });
+    // Contact inside a patch (a box standing on a floor that was not split where it stands): a surface's edge
+    // lying in a patch's plane and inside it splits that patch's front. Probes at a quarter, half and three
+    // quarters of each edge of each surface patch, with two short rays perpendicular to the edge (one of them
+    // meets any plane through the edge at 45 degrees or more).
+    tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1024), [&](const tbb::blocked_range<int>& range) {
+      std::vector<unsigned>& hits = hits_local.local();
+      std::vector<int>& cr = cross_local.local();
+      long long& nr = rays.local();
+      for (int e = range.begin(); e < range.end(); ++e) {
+        const int pe = patch_of[e];
+        if (!on_surface(pe)) continue;
+        const Vec3 &A = g.points[e], &B = g.points[next(e)];
+        const double L = (B - A).norm();
+        if (!(L > 2 * eps)) continue;
+        const Vec3 u = (B - A) / L;
+        const Vec3 dirs[2] = {g.normal[pe], g.normal[pe].cross(u)};
+        for (double f : {0.25, 0.5, 0.75}) {
+          const Vec3 v = A + f * (B - A);
+          for (const Vec3& d : dirs) {
+            hits.clear();
+            tris.all_hits(v - centre - 2 * eps * d, d, 0.0, 4 * eps, hits);
+            ++nr;
+            for (unsigned h : hits) {
+              const int q = tri_patch[h];
+              if (q == pe) continue;
+              const Vec3& nq = g.normal[q];
+              const double hv = nq.dot(v - g.centroid[q]);
+              if (std::abs(hv) > 2 * eps) continue;
+              if (polygon_side(g.polygon(q), nq, v - hv * nq, eps) > 0) cr.push_back(q);
+            }
+          }
         }
       }
     });

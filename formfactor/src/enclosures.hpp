@@ -13,8 +13,9 @@
 //
 // Each patch's cell is the set of surfaces whose inside holds a point just in front of it, by the parity of one ray
 // (retried in other directions when it passes within eps of an edge or grazes a face; cell -1 when all do). A patch
-// that crosses a patch of a surface, or is crossed by one (an edge through the interior of the other, as in a model
-// that was not repaired), gets cell -1 too: its front lies on both sides. Cell -1 never refuses anything.
+// that crosses a patch of a surface, or is crossed by one (an edge through the other), or that a surface's edge
+// touches inside (a box standing on a floor that was not split there), as in a model that was not repaired, gets
+// cell -1 too: its front lies on both sides. Cell -1 never refuses anything.
 #include <vector>
 
 #include "lambert/mesh/geometry.hpp"

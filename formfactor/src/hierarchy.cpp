@@ -9,7 +9,9 @@
 #include <chrono>
 #include <cmath>
 #include <mutex>
+#include <map>
 #include <numeric>
+#include <span>
 #include <string>
 
 #include "hierarchy_internal.hpp"
@@ -39,6 +41,13 @@ struct TreeBuilder {
   std::vector<HNode>& nodes;
   std::vector<int>& perm;
   std::vector<Box> pbox;
+  std::span<const int> cell;  // per patch (enclosures.hpp), or empty
+
+  bool mixed(int begin, int end) const {
+    for (int k = begin + 1; k < end; ++k)
+      if (cell[perm[k]] != cell[perm[begin]]) return true;
+    return false;
+  }
 
   int build(int begin, int end, int parent, int level) {
     const int id = int(nodes.size());
@@ -64,12 +73,39 @@ struct TreeBuilder {
       if (ce[k] > best) best = ce[k], key = k;
       if (ne[k] > best) best = ne[k], key = 3 + k;
     }
-    const int mid = (begin + end) / 2;
+    int mid = (begin + end) / 2;
     auto value = [&](int p) { return key < 3 ? g.centroid[p][key] : g.normal[p][key - 3]; };
-    std::nth_element(perm.begin() + begin, perm.begin() + mid, perm.begin() + end, [&](int a, int b) {
-      const double va = value(a), vb = value(b);
-      return va < vb || (va == vb && a < b);  // total order: the tree does not depend on the library's nth_element
-    });
+    if (!cell.empty() && mixed(begin, end)) {
+      // Patches of several cells (enclosures.hpp): whole cells go to one side, ordered by their mean key, and the
+      // split falls between cells nearest the median, so that the nodes below hold one cell each and the
+      // refinement can refuse pairs across cells at once.
+      std::map<int, std::pair<double, int>> mean;
+      for (int k = begin; k < end; ++k) {
+        auto& m = mean[cell[perm[k]]];
+        m.first += value(perm[k]);
+        ++m.second;
+      }
+      std::sort(perm.begin() + begin, perm.begin() + end, [&](int a, int b) {
+        const int cell_a = cell[a], cell_b = cell[b];
+        if (cell_a != cell_b) {
+          const auto &ma = mean[cell_a], &mb = mean[cell_b];
+          const double va = ma.first / ma.second, vb = mb.first / mb.second;
+          return va < vb || (va == vb && cell_a < cell_b);
+        }
+        const double va = value(a), vb = value(b);
+        return va < vb || (va == vb && a < b);
+      });
+      int best_mid = -1;
+      for (int k = begin + 1; k < end; ++k)
+        if (cell[perm[k]] != cell[perm[k - 1]] && (best_mid < 0 || std::abs(k - mid) < std::abs(best_mid - mid)))
+          best_mid = k;
+      mid = best_mid;
+    } else {
+      std::nth_element(perm.begin() + begin, perm.begin() + mid, perm.begin() + end, [&](int a, int b) {
+        const double va = value(a), vb = value(b);
+        return va < vb || (va == vb && a < b);  // total order: the tree does not depend on the library's nth_element
+      });
+    }
     const int l = build(begin, mid, id, level + 1);
     const int r = build(mid, end, id, level + 1);
     nodes[id].left = l;
@@ -181,7 +217,9 @@ class Refiner {
           std::size_t limit)
       : g_(g), o_(o), d_(d), etol_(etol), limit_(limit) {}
 
-  void setup(HierarchyStats& st) {
+  // occ: the potential occluders (potential_occluders); cell: per patch, the cells of the closed surfaces
+  // (enclosures.hpp), or empty.
+  void setup(const std::vector<int>& occ, std::span<const int> cell) {
     const int n = d_.n;
     // Brightness per node (max over its patches), relative to the brightest.
     lmax_.assign(d_.nodes.size(), 1.0);
@@ -201,7 +239,6 @@ class Refiner {
     for (int p = 0; p < n; ++p)
       for (const Vec3& v : g_.polygon(p)) pbox_[p].add(v);
     if (o_.visibility && n > 1) {
-      const std::vector<int> occ = potential_occluders(g_);
       if (!occ.empty()) {
         caster_ = o_.caster ? o_.caster : std::shared_ptr<const Visibility>(make_embree_visibility(g_, occ));
         tree_ = detail::OccluderTree(g_, occ);
@@ -219,23 +256,12 @@ class Refiner {
     total_ = 0.5 * d_.nodes[0].area * d_.nodes[0].area;
     // Cells of the closed surfaces, per node: the common cell of its patches, or -1.
     node_cell_.assign(d_.nodes.size(), -1);
-    if (occlusion_ && o_.enclosures) {
-      Eigen::AlignedBox3d box;
-      for (const Vec3& v : g_.points) box.extend(v);
-      const detail::Enclosures enc = detail::find_enclosures(g_, kEnclosureEps * box.diagonal().norm());
-      st.enclosures = enc.surfaces;
-      st.cell_crossed = enc.crossed;
-      st.enclosure_patches = enc.surface_patches;
-      st.cells = enc.cells;
-      st.cell_unknown = enc.unknown;
-      st.seconds_enclosures = enc.seconds;
-      if (enc.surfaces > 0)
-        for (int k = int(d_.nodes.size()) - 1; k >= 0; --k) {
-          const HNode& nd = d_.nodes[k];
-          node_cell_[k] = nd.leaf() ? enc.cell[d_.perm[nd.begin]]
-                                    : (node_cell_[nd.left] == node_cell_[nd.right] ? node_cell_[nd.left] : -1);
-        }
-    }
+    if (occlusion_ && !cell.empty())
+      for (int k = int(d_.nodes.size()) - 1; k >= 0; --k) {
+        const HNode& nd = d_.nodes[k];
+        node_cell_[k] = nd.leaf() ? cell[d_.perm[nd.begin]]
+                                  : (node_cell_[nd.left] == node_cell_[nd.right] ? node_cell_[nd.left] : -1);
+      }
   }
 
   void run() { refine(0, 0); }
@@ -637,10 +663,28 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
   auto body = [&] {
     const auto t_tree = Clock::now();
     d.P = detail::prepare(g);
+    // The closed surfaces' cells, first: the tree keeps cells apart where it can.
+    std::vector<int> occ;
+    detail::Enclosures enc;
+    if (o.visibility && n > 1) {
+      occ = potential_occluders(g);
+      if (!occ.empty() && o.enclosures) {
+        Eigen::AlignedBox3d box;
+        for (const Vec3& v : g.points) box.extend(v);
+        enc = detail::find_enclosures(g, kEnclosureEps * box.diagonal().norm());
+        st.enclosures = enc.surfaces;
+        st.cell_crossed = enc.crossed;
+        st.enclosure_patches = enc.surface_patches;
+        st.cells = enc.cells;
+        st.cell_unknown = enc.unknown;
+        st.seconds_enclosures = enc.seconds;
+      }
+    }
+    const std::span<const int> cells = enc.surfaces > 0 ? std::span<const int>(enc.cell) : std::span<const int>();
     d.perm.resize(n);
     std::iota(d.perm.begin(), d.perm.end(), 0);
     d.nodes.reserve(size_t(2 * n));
-    TreeBuilder tb{g, d.nodes, d.perm, {}};
+    TreeBuilder tb{g, d.nodes, d.perm, {}, cells};
     tb.pbox.resize(n);
     for (int p = 0; p < n; ++p)
       for (const Vec3& v : g.polygon(p)) tb.pbox[p].add(v);
@@ -656,7 +700,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     const auto t_links = Clock::now();
     Refiner rf(g, o, d, etol, sys.bytes);
     rf.link_tol_ = st.link_tolerance;
-    rf.setup(st);
+    rf.setup(occ, cells);
     rf.run();
     // Gather the records, sorted: the stored operator does not depend on the thread count.
     std::vector<FarRecord> far;
