@@ -353,9 +353,8 @@ TEST(Enclosures, CellsDoNotDependOnPositionOrThreads) {
 // operators approximate the same transport, each within its own admitted error (row_error: far links' expansion
 // and blocked links' possible transmittance; row_visibility_sigma: the leaf pairs' ray estimates, taken at 3
 // sigma). Hence per row |y_on - y_off| <= (row_error_on + row_error_off + 3 (sigma_on + sigma_off)) max x, plus
-// 1e-12 max x for summation order. (Not "identical links": OccluderTree::may_block's answer depends on the occluder
-// hint left by the thread's previous query (formfactor/src/shaft.cpp), so even two off builds can link same-cell
-// pairs differently.)
+// 1e-12 max x for summation order. (Not "identical links": the tree splits differently when it keeps cells apart,
+// so the two builds link same-cell pairs differently.)
 // Where the refused pairs were blocked anyway the result is exact: the dark room receives exactly 0 from the lit
 // room with enclosures on.
 TEST(Enclosures, HierarchyWithCellsMatchesWithout) {

@@ -35,7 +35,6 @@ Shaft make_shaft(const Box& a, const Box& b) {
           n[u] = nu;
           n[v] = nv;
           s.n[s.planes] = n;
-          s.n_abs[s.planes] = n.cwiseAbs();
           s.d[s.planes] = nu * pu + nv * pv;
           ++s.planes;
         }
@@ -46,12 +45,18 @@ namespace {
 bool box_outside(const Shaft& s, const Box& c) {
   for (int k = 0; k < 3; ++k)
     if (c.hi[k] < s.box.lo[k] || c.lo[k] > s.box.hi[k]) return true;
-  const Vec3 ctr = 0.5 * (c.lo + c.hi), half = 0.5 * (c.hi - c.lo);
+  // Extreme corners, not centre and half extent: evaluated corner by corner, the test is monotone under rounding
+  // (a box inside a box that is outside is outside), so the tree's pruning and a test of one occluder agree and
+  // the answer does not depend on where a traversal starts (may_block's hint, hence on the thread count).
+  auto lowest = [&](const Vec3& n) {  // min over the box of n . x
+    return n.x() * (n.x() > 0 ? c.lo.x() : c.hi.x()) + n.y() * (n.y() > 0 ? c.lo.y() : c.hi.y()) +
+           n.z() * (n.z() > 0 ? c.lo.z() : c.hi.z());
+  };
   for (int p = 0; p < s.planes; ++p)
-    if (s.n[p].dot(ctr) - s.n_abs[p].dot(half) > s.d[p]) return true;
+    if (lowest(s.n[p]) > s.d[p]) return true;
   // Entirely in the closed back half-space of either patch: the open segments run strictly in front.
-  if (s.ni.dot(ctr) + s.ni.cwiseAbs().dot(half) - s.oi <= s.eps) return true;
-  if (s.nj.dot(ctr) + s.nj.cwiseAbs().dot(half) - s.oj <= s.eps) return true;
+  if (-lowest(-s.ni) - s.oi <= s.eps) return true;
+  if (-lowest(-s.nj) - s.oj <= s.eps) return true;
   return false;
 }
 }  // namespace

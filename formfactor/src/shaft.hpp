@@ -25,7 +25,6 @@ struct Shaft {
   Box box;
   int planes = 0;
   std::array<Vec3, 12> n;  // outward normals: the shaft is n.p <= d for every plane
-  std::array<Vec3, 12> n_abs;  // |n| per component (box tests)
   std::array<double, 12> d;
   // Planes of the two patches: segments run in their strict front half-spaces.
   Vec3 ni, nj;
