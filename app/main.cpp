@@ -127,8 +127,8 @@ int main(int argc, char** argv) {
         ->check(number_in(0, 1, true, "a number in (0, 1)"))
         ->capture_default_str();
     sub->add_option("--enclosures", common.enclosures,
-                    "Hierarchical operator: find the closed surfaces (rooms, apartments, shut boxes) and refuse, "
-                    "without rays, node pairs whose patches face different cells (on), or ray-test them (off)")
+                    "Find the closed surfaces (rooms, apartments, shut boxes) and set pairs whose patches face "
+                    "different cells to zero without rays (both operators), or ray-test them (off)")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
   };

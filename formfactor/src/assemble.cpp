@@ -12,6 +12,7 @@
 #include <string>
 
 #include "assembler.hpp"
+#include "enclosures.hpp"
 
 namespace lambert::formfactor {
 namespace detail {
@@ -108,6 +109,13 @@ DenseMatrixOperator Assembler::run() {
           pbox_lo_[size_t(p)] = pbox_lo_[size_t(p)].cwiseMin(v);
           pbox_hi_[size_t(p)] = pbox_hi_[size_t(p)].cwiseMax(v);
         }
+      if (o_.enclosures) {
+        const Enclosures enc = find_enclosures(g_, 1e-6 * scale_);  // hierarchy.cpp's kEnclosureEps
+        st_.enclosures = enc.surfaces;
+        st_.cells = enc.cells;
+        st_.cell_unknown = enc.unknown;
+        if (enc.surfaces > 0) cell_ = enc.cell;
+      }
       if (o_.visibility_method != VisibilityMethod::Rays) {
         merged_ = merge_coplanar_occluders(g_, occ, scale_);
         for (int m : merged_.of_patch) st_.occluders_merged += m >= 0;

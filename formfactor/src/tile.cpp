@@ -323,7 +323,26 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     };
     b.walls.clear();
     b.searches = 0;
-    const bool tile_clear = o_.cull_occlusion && clear_between(i0, i1, j0, j1);
+    // Patches facing different cells (enclosures.hpp): zero without rays, per pair; whole blocks first.
+    auto block_cell = [&](int a0, int a1) {
+      if (cell_.empty()) return -1;
+      const int cc = cell_[size_t(a0)];
+      for (int p = a0 + 1; p < a1; ++p)
+        if (cell_[size_t(p)] != cc) return -1;
+      return cc;
+    };
+    auto apart = [&](int ca, int cb) { return ca >= 0 && cb >= 0 && ca != cb; };
+    auto zero_cells = [&](int a0, int a1, int c0, int c1) {
+      for (int i = a0; i < a1; ++i)
+        for (int j = std::max(c0, bi == bj ? i + 1 : c0); j < c1; ++j)
+          if (F(i, j) > 0 && !reused(i, j) && apart(cell_[size_t(i)], cell_[size_t(j)])) {
+            F(i, j) = 0;  // exact: every segment between them crosses a closed surface
+            ++c.cell_hidden;
+          }
+    };
+    if (!cell_.empty()) zero_cells(i0, i1, j0, j1);
+    const bool tile_apart = apart(block_cell(i0, i1), block_cell(j0, j1));
+    const bool tile_clear = !tile_apart && o_.cull_occlusion && clear_between(i0, i1, j0, j1);
     auto zero_hidden = [&](int a0, int a1, int c0, int c1) {
       for (int i = a0; i < a1; ++i)
         for (int j = std::max(c0, bi == bj ? i + 1 : c0); j < c1; ++j)
@@ -333,7 +352,8 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
           }
     };
     // Two blocks far apart in one storey, or on two storeys: one wall or slab may hide the whole tile.
-    const bool tile_hidden = o_.cull_occlusion && !tile_clear && bi != bj && hidden_between(i0, i1, j0, j1);
+    const bool tile_hidden =
+        tile_apart || (o_.cull_occlusion && !tile_clear && bi != bj && hidden_between(i0, i1, j0, j1));
     if (tile_hidden) zero_hidden(i0, i1, j0, j1);
     constexpr int kSub = 8;
     for (int si = tile_hidden ? i1 : i0; si < i1; si += kSub)

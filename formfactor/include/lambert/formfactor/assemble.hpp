@@ -92,6 +92,9 @@ struct Options {
   // Occlusion caster; null = Embree over the potential occluders. Tests inject the brute-force one.
   std::shared_ptr<const Visibility> caster;
   bool cull_occlusion = true;  // false: ray-test every visible pair, even those shaft culling proves clear (tests)
+  // Closed surfaces (rooms, apartments, shut boxes) split space into cells; pairs whose patches face different cells
+  // are zero without rays (as HierarchyOptions::enclosures).
+  bool enclosures = true;
   // Independent reciprocity check (Stats::reciprocity_*): about this many sampled pairs per method; 0 = off.
   int reciprocity_samples = 40;
   // Fault injection, for the tests of the checks only: every unoccluded F computed by the method named here
@@ -128,6 +131,10 @@ struct Stats {
   // Pairs proven hidden by a separating plane (a wall or slab of occluders covering every segment between them,
   // both paths: whole 8 x 8 sub-tiles, and single pairs on the exact path), and the proofs tried.
   long long pairs_plane_hidden = 0, plane_tests = 0;
+  // Closed surfaces found (Options::enclosures), the cells they split space into, patches of no known cell, and the
+  // pairs set to zero because their patches face different cells.
+  int enclosures = 0, cells = 0;
+  long long cell_unknown = 0, pairs_cell_hidden = 0;
   // Exact path: occluder patches merged with coplanar touching neighbours (a meshed wall or block face) into
   // this many polygons, one per connected region of their union.
   int occluders_merged = 0, occluder_regions = 0;
