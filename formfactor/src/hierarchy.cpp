@@ -85,16 +85,24 @@ struct TreeBuilder {
         m.first += value(perm[k]);
         ++m.second;
       }
-      std::sort(perm.begin() + begin, perm.begin() + end, [&](int a, int b) {
-        const int cell_a = cell[a], cell_b = cell[b];
-        if (cell_a != cell_b) {
-          const auto &ma = mean[cell_a], &mb = mean[cell_b];
-          const double va = ma.first / ma.second, vb = mb.first / mb.second;
-          return va < vb || (va == vb && cell_a < cell_b);
-        }
-        const double va = value(a), vb = value(b);
-        return va < vb || (va == vb && a < b);
+      struct Key {
+        double cell_mean;
+        int cell;
+        double v;
+        int p;
+      };
+      std::vector<Key> keys;
+      keys.reserve(size_t(end - begin));
+      for (int k = begin; k < end; ++k) {
+        const int p = perm[k];
+        const auto& m = mean[cell[p]];
+        keys.push_back({m.first / m.second, cell[p], value(p), p});
+      }
+      std::sort(keys.begin(), keys.end(), [](const Key& x, const Key& y) {
+        if (x.cell != y.cell) return x.cell_mean < y.cell_mean || (x.cell_mean == y.cell_mean && x.cell < y.cell);
+        return x.v < y.v || (x.v == y.v && x.p < y.p);
       });
+      for (int k = begin; k < end; ++k) perm[k] = keys[size_t(k - begin)].p;
       int best_mid = -1;
       for (int k = begin + 1; k < end; ++k)
         if (cell[perm[k]] != cell[perm[k - 1]] && (best_mid < 0 || std::abs(k - mid) < std::abs(best_mid - mid)))
