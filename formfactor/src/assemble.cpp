@@ -110,7 +110,7 @@ DenseMatrixOperator Assembler::run() {
           pbox_hi_[size_t(p)] = pbox_hi_[size_t(p)].cwiseMax(v);
         }
       if (o_.enclosures) {
-        const Enclosures enc = find_enclosures(g_, 1e-6 * scale_);  // hierarchy.cpp's kEnclosureEps
+        const Enclosures enc = find_enclosures(g_);
         st_.enclosures = enc.surfaces;
         st_.cells = enc.cells;
         st_.cell_unknown = enc.unknown;

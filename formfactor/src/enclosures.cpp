@@ -381,23 +381,11 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
           // Through the interior, or through the boundary (a seam between two of the surface's patches): crossed.
           if (polygon_side(g.polygon(q), nq, y, eps) >= 0) cr.push_back(pe), cr.push_back(q);
         }
-      }
-    });
-    // Contact inside a patch (a box standing on a floor that was not split where it stands): a surface's edge
-    // lying in a patch's plane and inside it splits that patch's front. Probes at a quarter, half and three
-    // quarters of each edge of each surface patch, with two short rays perpendicular to the edge (one of them
-    // meets any plane through the edge at 45 degrees or more).
-    tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1024), [&](const tbb::blocked_range<int>& range) {
-      std::vector<unsigned>& hits = hits_local.local();
-      std::vector<int>& cr = cross_local.local();
-      long long& nr = rays.local();
-      for (int e = range.begin(); e < range.end(); ++e) {
-        const int pe = patch_of[e];
+        // Contact inside a patch (a box standing on a floor that was not split where it stands): a surface's edge
+        // lying in a patch's plane and inside it splits that patch's front. Probes at a quarter, half and three
+        // quarters of each edge of each surface patch, with two short rays perpendicular to the edge (one of them
+        // meets any plane through the edge at 45 degrees or more).
         if (!on_surface(pe)) continue;
-        const Vec3 &A = g.points[e], &B = g.points[next(e)];
-        const double L = (B - A).norm();
-        if (!(L > 2 * eps)) continue;
-        const Vec3 u = (B - A) / L;
         const Vec3 dirs[2] = {g.normal[pe], g.normal[pe].cross(u)};
         for (double f : {0.25, 0.5, 0.75}) {
           const Vec3 v = A + f * (B - A);
@@ -546,6 +534,12 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
   out.rays = rays.combine(std::plus<>());
   out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return out;
+}
+
+Enclosures find_enclosures(const mesh::PatchGeometry& g) {
+  Eigen::AlignedBox3d box;
+  for (const Vec3& v : g.points) box.extend(v);
+  return find_enclosures(g, box.isEmpty() ? 0.0 : kEnclosureEps * box.diagonal().norm());
 }
 
 }  // namespace lambert::formfactor::detail

@@ -37,4 +37,10 @@ struct Enclosures {
 // than eps and gaps narrower than eps do not count. Deterministic (any thread count).
 Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps);
 
+// The contact distance both operators use, relative to the scene's bounding-box diagonal (mesh::prepare's default
+// weld tolerance: edges this close are one edge, gaps this narrow are closed).
+constexpr double kEnclosureEps = 1e-6;
+// find_enclosures with eps = kEnclosureEps x the bounding-box diagonal of g.
+Enclosures find_enclosures(const mesh::PatchGeometry& g);
+
 }  // namespace lambert::formfactor::detail

@@ -210,9 +210,6 @@ constexpr int kMaxBlockedRays = 256;
 constexpr double kAbsolute = 0.002;
 // Automatic per-entry tolerance of the leaf pairs, as a fraction of the link tolerance (build_hierarchy).
 constexpr double kEntryShare = 1e-3;
-// Contact distance of the closed-surface search, relative to the scene's bounding-box diagonal (mesh::prepare's
-// default weld tolerance: edges this close are one edge, gaps this narrow are closed).
-constexpr double kEnclosureEps = 1e-6;
 
 struct VisResult {
   double V = 1, uncertainty = 0;
@@ -677,9 +674,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     if (o.visibility && n > 1) {
       occ = potential_occluders(g);
       if (!occ.empty() && o.enclosures) {
-        Eigen::AlignedBox3d box;
-        for (const Vec3& v : g.points) box.extend(v);
-        enc = detail::find_enclosures(g, kEnclosureEps * box.diagonal().norm());
+        enc = detail::find_enclosures(g);
         st.enclosures = enc.surfaces;
         st.cell_crossed = enc.crossed;
         st.enclosure_patches = enc.surface_patches;
