@@ -509,7 +509,7 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
       s += fmt::format("  enclosures   {} closed surfaces ({} patches): {} cells{}; {} node pairs facing different cells "
                        "refused without rays ({:.2f} s)\n",
                        h.enclosures, h.enclosure_patches, h.cells,
-                       h.cell_unknown ? fmt::format(" ({} patches of no known cell, {} of them crossing a surface)",
+                       h.cell_unknown ? fmt::format(" ({} patches of no known cell, {} of them crossing or touching a surface inside)",
                                                     h.cell_unknown, h.cell_crossed)
                                       : "",
                        h.pairs_cell_culled, h.seconds_enclosures);

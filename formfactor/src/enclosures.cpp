@@ -148,7 +148,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
   Eigen::AlignedBox3d box;
   for (const Vec3& v : g.points) box.extend(v);
   const Vec3 centre = box.center();
-  tbb::enumerable_thread_specific<long long> rays(0);
 
   // 1. Distinct corner positions (exact equality) and the corners at each.
   std::vector<int> order(static_cast<size_t>(nc));
@@ -169,9 +168,9 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
   // 2. Overlapping collinear edges of different patches, from a search for the points within eps of each edge
   // (spheres of radius 2 eps in Embree, float): two collinear edges overlap only where an end of one lies on the
   // other, so one of the two searches finds the pair.
+  Device dev;  // one for the point search (step 2) and the triangles (steps 5 and 6)
   std::vector<std::pair<int, int>> pairs;
   {
-    Device dev;
     Scene spheres(dev.d);
     RTCGeometry geom = rtcNewGeometry(dev.d, RTC_GEOMETRY_TYPE_SPHERE_POINT);
     auto* vb = static_cast<float*>(
@@ -195,7 +194,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
     tbb::enumerable_thread_specific<Local> locals;
     tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1024), [&](const tbb::blocked_range<int>& range) {
       Local& loc = locals.local();
-      long long& nr = rays.local();
       for (int e = range.begin(); e < range.end(); ++e) {
         const Vec3 &A = g.points[e], &B = g.points[next(e)];
         const double L = (B - A).norm();
@@ -203,7 +201,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
         const Vec3 u = (B - A) / L;
         loc.hits.clear();
         spheres.all_hits(A - centre - 3 * double(r) * u, u, 0.0, L + 6 * double(r), loc.hits);
-        ++nr;
         std::sort(loc.hits.begin(), loc.hits.end());
         loc.hits.erase(std::unique(loc.hits.begin(), loc.hits.end()), loc.hits.end());
         for (unsigned h : loc.hits)
@@ -337,7 +334,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
   for (int p = 0; p < n; ++p) out.surface_patches += surf[p][0] >= 0;
   out.surfaces = nsurf;
   if (nsurf == 0) {
-    out.rays = rays.combine(std::plus<>());
     out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return out;
   }
@@ -346,7 +342,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
   // 5. Patches crossing a patch of a surface (an edge of one through the other, both ends more than eps off its
   // plane), or touched inside by a surface's edge: the front of either lies on both sides of some surface, so both
   // get cell -1.
-  Device dev;
   Scene tris(dev.d);
   std::vector<int> tri_patch;
   add_patch_triangles(dev.d, tris.s, g, {}, centre, tri_patch);
@@ -358,7 +353,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
     tbb::parallel_for(tbb::blocked_range<int>(0, nc, 1024), [&](const tbb::blocked_range<int>& range) {
       std::vector<unsigned>& hits = hits_local.local();
       std::vector<int>& cr = cross_local.local();
-      long long& nr = rays.local();
       for (int e = range.begin(); e < range.end(); ++e) {
         const int pe = patch_of[e];
         const Vec3 &A = g.points[e], &B = g.points[next(e)];
@@ -367,7 +361,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
         const Vec3 u = (B - A) / L;
         hits.clear();
         tris.all_hits(A - centre, u, 0.0, L, hits);
-        ++nr;
         for (unsigned& h : hits) h = unsigned(tri_patch[h]);
         std::sort(hits.begin(), hits.end());
         hits.erase(std::unique(hits.begin(), hits.end()), hits.end());
@@ -392,8 +385,7 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
           for (const Vec3& d : dirs) {
             hits.clear();
             tris.all_hits(v - centre - 2 * eps * d, d, 0.0, 4 * eps, hits);
-            ++nr;
-            for (unsigned h : hits) {
+                for (unsigned h : hits) {
               const int q = tri_patch[h];
               if (q == pe) continue;
               const Vec3& nq = g.normal[q];
@@ -440,7 +432,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
     tbb::enumerable_thread_specific<Local> locals;
     tbb::parallel_for(tbb::blocked_range<int>(0, n, 256), [&](const tbb::blocked_range<int>& range) {
       Local& loc = locals.local();
-      long long& nr = rays.local();
       for (int p = range.begin(); p < range.end(); ++p) {
         // A point inside the patch: the centroid of its largest triangle, then 4 eps in front.
         double best = -1;
@@ -476,8 +467,7 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
           }
           loc.hits.clear();
           tris.all_hits(x - centre, d, 0.0, tfar + eps, loc.hits);
-          ++nr;
-          for (unsigned& h : loc.hits) h = unsigned(tri_patch[h]);
+            for (unsigned& h : loc.hits) h = unsigned(tri_patch[h]);
           std::sort(loc.hits.begin(), loc.hits.end());
           loc.hits.erase(std::unique(loc.hits.begin(), loc.hits.end()), loc.hits.end());
           loc.parity.assign(loc.rel.size(), 0);
@@ -531,7 +521,6 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
     out.cell[p] = it->second;
   }
   out.cells = int(ids.size());
-  out.rays = rays.combine(std::plus<>());
   out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return out;
 }

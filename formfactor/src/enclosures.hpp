@@ -29,7 +29,6 @@ struct Enclosures {
   long long surface_patches = 0;    // patches on a closed surface
   int cells = 0;                    // distinct cell ids
   long long unknown = 0;            // patches with cell -1
-  long long rays = 0;               // rays cast (edge searches, crossing tests, parity)
   double seconds = 0;
 };
 

@@ -323,7 +323,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
     };
     b.walls.clear();
     b.searches = 0;
-    // Patches facing different cells (enclosures.hpp): zero without rays, per pair; whole blocks first.
+    // Patches facing different cells (enclosures.hpp): zero without rays; a tile of two cells is done at once.
     auto block_cell = [&](int a0, int a1) {
       if (cell_.empty()) return -1;
       const int cc = cell_[size_t(a0)];
@@ -340,8 +340,10 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
             ++c.cell_hidden;
           }
     };
-    if (!cell_.empty()) zero_cells(i0, i1, j0, j1);
-    const bool tile_apart = apart(block_cell(i0, i1), block_cell(j0, j1));
+    const int cell_i = block_cell(i0, i1), cell_j = block_cell(j0, j1);
+    const bool tile_apart = apart(cell_i, cell_j);
+    // Two blocks of one and the same cell: nothing to refuse; otherwise pair by pair (all pairs when apart).
+    if (!cell_.empty() && (cell_i < 0 || cell_j < 0 || cell_i != cell_j)) zero_cells(i0, i1, j0, j1);
     const bool tile_clear = !tile_apart && o_.cull_occlusion && clear_between(i0, i1, j0, j1);
     auto zero_hidden = [&](int a0, int a1, int c0, int c1) {
       for (int i = a0; i < a1; ++i)

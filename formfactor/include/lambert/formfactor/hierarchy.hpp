@@ -91,7 +91,7 @@ struct HierarchyStats {
   long long pairs_cell_culled = 0;          // node pairs refused because their patches face different cells
   int enclosures = 0, cells = 0;                         // closed surfaces found; cells they split space into
   long long enclosure_patches = 0, cell_unknown = 0;     // patches on closed surfaces; patches of no known cell
-  long long cell_crossed = 0;                            // of those: crossing (or crossed by) a surface's patch
+  long long cell_crossed = 0;                            // of those: crossing, crossed by or touched inside by a surface
   double seconds_enclosures = 0;
   long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;  // exact visibility path
   long long exact_points = 0, pairs_exact_over_tolerance = 0;
