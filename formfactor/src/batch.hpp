@@ -47,7 +47,15 @@ struct BatchKernels {
   void (*transpose)(const double* area, double* F, long long stride, int i0, int i1, int j0, int j1, bool diag,
                     const double* err, int err_stride, double* row_i, double* row_j, double* err_i, double* err_j,
                     long long* outside, long long* roundoff);
+  // The far links of one receiver cluster in the hierarchy's product (hierarchy_apply.cpp): out[0..29] += the
+  // second-order expansion's (g, J, H) about the receiver's centre ca (g: 3, J: 3 x 3, H: 3 x 6, column-major)
+  // summed over the links e < count in order of lanes, source node src[e] with visible fraction vis[e]. rec holds
+  // kMomentRecord doubles per node: its centre (m), then V (3), W (3 x 3) and T (3 x 6) of its moments,
+  // column-major. Centres of a link's two nodes must differ.
+  void (*gather_links)(const double* rec, const double* ca, const int* src, const float* vis, long long count,
+                       double* out);
 };
+constexpr int kMomentRecord = 33;
 
 const BatchKernels& batch_kernels();  // the best variant this CPU supports
 const BatchKernels& batch_kernels_avx512();

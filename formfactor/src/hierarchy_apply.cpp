@@ -1,4 +1,4 @@
-// Hierarchical operator: y = F x by pull (cluster moments), gather (far links, first-order expansion of the
+// Hierarchical operator: y = F x by pull (cluster moments), gather (far links, second-order expansion of the
 // kernel about both cluster centres), push (down to the patches) plus the exact leaf entries; rows streamed
 // entry by entry; the memory limit.
 #include <tbb/blocked_range.h>
@@ -12,6 +12,7 @@
 
 #include <unistd.h>
 
+#include "batch.hpp"
 #include "hierarchy_internal.hpp"
 
 namespace lambert::formfactor {
@@ -37,59 +38,8 @@ double HierarchicalOperator::row_sum(int i) const { return d_->row_sums.empty() 
 namespace {
 
 using Mat36 = Eigen::Matrix<double, 3, 6>;  // a vector per symmetric index pair kl: xx yy zz xy xz yz
-constexpr int kKL[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
 constexpr int kK[6] = {0, 1, 2, 0, 0, 1}, kL[6] = {0, 1, 2, 1, 2, 2};
 constexpr double kMult[6] = {1, 1, 1, 2, 2, 2};  // sum over k, l of a symmetric form = sum over kl of mult x
-
-// Gather of one far link into the receiver's (g, J, H), given the source's moments about its centre
-// (V = sum A x n, W = sum A x n b^T, T(:, kl) = sum A x n b_k b_l) and u = c_B - c_A: the second-order Taylor
-// expansion of sum_j K(u + b_j - a) A_j x_j n_j in b and a, K(u) = -u u^T / (pi |u|^4):
-//   g = K V + sum_k d_k K W(:,k) + 1/2 sum_kl d_k d_l K T(:,kl),   (a-independent part)
-//   G(a) = g - J a + 1/2 H[a, a],  J(:,l) = d_l K V + sum_k d_k d_l K W(:,k),  H_kl = d_k d_l K V.
-// With phi = 1/(pi r^4), dphi = -4 phi u / r^2 and S_kl = d_k d_l phi = -4 phi (delta_kl / r^2 - 6 u_k u_l / r^4):
-//   d_k (K v) = -dphi_k (u.v) u - phi (v_k u + (u.v) e_k)
-//   d_k d_l (K v) = -S_kl (u.v) u - dphi_k (v_l u + (u.v) e_l) - dphi_l (v_k u + (u.v) e_k) - phi (v_k e_l + v_l e_k).
-inline void gather(const Vec3& u, double vis, const Vec3& V, const Mat3& W, const Mat36& T, Vec3& g, Mat3& J,
-                   Mat36& H) {
-  // Written out (no Eigen temporaries): this is the inner loop of every product F x.
-  const double r2 = u.squaredNorm(), phi = 1 / (kPi * r2 * r2), c4 = -4 * phi / r2, c24 = 24 * phi / (r2 * r2);
-  const Vec3 dphi = c4 * u;  // grad phi
-  const double uV = u.dot(V);
-  const Vec3 Wtu = W.transpose() * u;
-  const Vec3 Wdphi = W * dphi;
-  const double tr = W.trace();
-  // P_kl = u . T(:,kl) (symmetric), q_l = sum_k T(k, kl).
-  double Pv[6];
-  for (int kl = 0; kl < 6; ++kl) Pv[kl] = u.dot(T.col(kl));
-  const Vec3 q(T(0, 0) + T(1, 3) + T(2, 4), T(0, 3) + T(1, 1) + T(2, 5), T(0, 4) + T(1, 5) + T(2, 2));
-  const Vec3 Pu(Pv[0] * u[0] + Pv[3] * u[1] + Pv[4] * u[2], Pv[3] * u[0] + Pv[1] * u[1] + Pv[5] * u[2],
-                Pv[4] * u[0] + Pv[5] * u[1] + Pv[2] * u[2]);
-  const double trP = Pv[0] + Pv[1] + Pv[2], uPu = u.dot(Pu);
-  const double SP = c4 * trP + c24 * uPu;  // S : P, S = c4 I + c24 u u^T
-  // g = K V + sum_k d_k K W(:,k) + 1/2 sum_kl d_k d_l K T(:,kl)
-  //   = u (-phi uV - dphi.Wtu - phi tr - SP/2 - dphi.q) - phi Wtu - P dphi - phi q,  P dphi = c4 P u.
-  const double cu = -phi * uV - dphi.dot(Wtu) - phi * tr - 0.5 * SP - dphi.dot(q);
-  g += vis * (cu * u - phi * Wtu - c4 * Pu - phi * q);
-  // J = u a^T - Wtu dphi^T + c I - phi W^T with
-  //   a = -(S Wtu) - W dphi - tr dphi - uV dphi - phi V,  S Wtu = c4 Wtu + c24 u (u.Wtu),
-  //   c = -u.(W dphi) - phi tr - phi uV.
-  const Vec3 a = -(c4 * Wtu + (c24 * u.dot(Wtu)) * u) - Wdphi - (tr + uV) * dphi - phi * V;
-  const double c = -u.dot(Wdphi) - phi * (tr + uV);
-  for (int col = 0; col < 3; ++col)
-    for (int row = 0; row < 3; ++row)
-      J(row, col) += vis * (u[row] * a[col] - Wtu[row] * dphi[col] - phi * W(col, row) + (row == col ? c : 0.0));
-  // H_kl = d_k d_l K V = u alpha_kl + e_l w_k + e_k w_l, alpha_kl = -S_kl uV - dphi_k V_l - dphi_l V_k,
-  // w = -phi V - uV dphi.
-  const Vec3 w = -phi * V - uV * dphi;
-  for (int kl = 0; kl < 6; ++kl) {
-    const int k = kK[kl], l = kL[kl];
-    const double S_kl = (k == l ? c4 : 0.0) + c24 * u[k] * u[l];
-    const double alpha = -S_kl * uV - dphi[k] * V[l] - dphi[l] * V[k];
-    for (int row = 0; row < 3; ++row) H(row, kl) += vis * alpha * u[row];
-    H(l, kl) += vis * w[k];
-    H(k, kl) += vis * w[l];
-  }
-}
 
 }  // namespace
 
@@ -101,7 +51,6 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   const detail::PatchData& P = d.P;
   // Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, b = point - node centre (each
   // patch's own second moments included); children after parents: reverse order.
-  // One record per node: the gather reads all three of a source at once (one cache miss instead of three).
   struct Moments {
     Vec3 V;
     Mat3 W;
@@ -133,26 +82,30 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
       }
     }
   }
-  // Gather: each receiver node sums its own links in stored order (deterministic for any thread count).
+  // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
+  // stored order (deterministic for any thread count). One record per node, the gather reads a source's centre
+  // and moments at once.
+  std::vector<double> rec(static_cast<size_t>(nn) * detail::kMomentRecord);
+  for (int k = 0; k < nn; ++k) {
+    double* r = rec.data() + static_cast<size_t>(k) * detail::kMomentRecord;
+    std::copy_n(d.nodes[k].c.data(), 3, r);
+    std::copy_n(V(k).data(), 3, r + 3);
+    std::copy_n(W(k).data(), 9, r + 6);
+    std::copy_n(T(k).data(), 18, r + 15);
+  }
   std::vector<Vec3> G(nn, Vec3::Zero());
   std::vector<Mat3> J(nn, Mat3::Zero());
   std::vector<Mat36> H(nn, Mat36::Zero());
+  const detail::BatchKernels& K = detail::batch_kernels();
   tbb::parallel_for(tbb::blocked_range<int>(0, nn, 256), [&](const tbb::blocked_range<int>& r) {
     for (int k = r.begin(); k < r.end(); ++k) {
       const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
       if (e0 == e1) continue;
-      Vec3 gk = Vec3::Zero();
-      Mat3 Jk = Mat3::Zero();
-      Mat36 Hk = Mat36::Zero();
-      const Vec3& ca = d.nodes[k].c;
-      for (std::int64_t e = e0; e < e1; ++e) {
-        const int b = d.far_src[e];
-        const Moments& m = mom[size_t(b)];
-        gather(d.nodes[b].c - ca, double(d.far_vis[e]), m.V, m.W, m.T, gk, Jk, Hk);
-      }
-      G[k] = gk;
-      J[k] = Jk;
-      H[k] = Hk;
+      double out[30] = {};
+      K.gather_links(rec.data(), d.nodes[k].c.data(), d.far_src.data() + e0, d.far_vis.data() + e0, e1 - e0, out);
+      G[k] = Eigen::Map<const Vec3>(out);
+      J[k] = Eigen::Map<const Mat3>(out + 3);
+      H[k] = Eigen::Map<const Mat36>(out + 12);
     }
   });
   // Push: a child at offset a from its parent's centre receives g - J a + H[a,a]/2, J - H[a,.] and H.

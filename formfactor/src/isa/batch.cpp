@@ -334,10 +334,111 @@ void transpose(const double* area, double* F, long long stride, int i0, int i1, 
   *roundoff += round_total;
 }
 
+// Lanes per step: as many doubles as one register holds (8 links at a time would spill the 30 accumulators of
+// AVX2's 16 registers).
+#if defined(__AVX512F__)
+constexpr int kGatherLanes = 8;
+#elif defined(__AVX2__)
+constexpr int kGatherLanes = 4;
+#else
+constexpr int kGatherLanes = 2;
+#endif
+typedef double vg __attribute__((vector_size(8 * kGatherLanes)));
+
+// Far links of one receiver, kGatherLanes links per step (one per lane). The second-order Taylor expansion of
+// sum_j K(u + b_j - a) A_j x_j n_j in b and a, K(u) = -u u^T / (pi |u|^4), u = c_B - c_A, from the source's moments
+// V = sum A x n, W = sum A x n b^T, T(:, kl) = sum A x n b_k b_l (kl: xx yy zz xy xz yz):
+//   g = K V + sum_k d_k K W(:,k) + 1/2 sum_kl d_k d_l K T(:,kl),   G(a) = g - J a + 1/2 H[a, a],
+//   J(:,l) = d_l K V + sum_k d_k d_l K W(:,k),  H_kl = d_k d_l K V.
+// With phi = 1/(pi r^4), dphi = -4 phi u / r^2 and S_kl = d_k d_l phi = c4 delta_kl + c24 u_k u_l:
+//   d_k (K v) = -dphi_k (u.v) u - phi (v_k u + (u.v) e_k)
+//   d_k d_l (K v) = -S_kl (u.v) u - dphi_k (v_l u + (u.v) e_l) - dphi_l (v_k u + (u.v) e_k) - phi (v_k e_l + v_l e_k).
+// Padding lanes read the first link's source with visible fraction 0.
+void gather_links(const double* rec, const double* ca, const int* src, const float* vis, long long count,
+                  double* out) {
+  constexpr int L = kGatherLanes;
+  constexpr int kK[6] = {0, 1, 2, 0, 0, 1}, kL[6] = {0, 1, 2, 1, 2, 2};
+  vg acc[30];
+  for (vg& a : acc) a = vg{};
+  for (long long e0 = 0; e0 < count; e0 += L) {
+    const long long m = count - e0 < L ? count - e0 : L;
+    const double* r[L];
+    vg vv;
+    for (int k = 0; k < L; ++k) {
+      r[k] = rec + std::ptrdiff_t(src[e0 + (k < m ? k : 0)]) * kMomentRecord;
+      vv[k] = k < m ? double(vis[e0 + k]) : 0.0;
+    }
+    vg f[kMomentRecord];
+    for (int c = 0; c < kMomentRecord; ++c)
+      for (int k = 0; k < L; ++k) f[c][k] = r[k][c];
+    const vg u[3] = {f[0] - ca[0], f[1] - ca[1], f[2] - ca[2]};
+    const vg* V = f + 3;
+    const vg* Wm = f + 6;   // W(i, j) = Wm[3 j + i]
+    const vg* T = f + 15;   // T(i, kl) = T[3 kl + i]
+    const vg r2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    const vg phi = 1.0 / (kPi * r2 * r2), c4 = -4.0 * phi / r2, c24 = 24.0 * phi / (r2 * r2);
+    const vg dphi[3] = {c4 * u[0], c4 * u[1], c4 * u[2]};
+    const vg uV = u[0] * V[0] + u[1] * V[1] + u[2] * V[2];
+    vg Wtu[3], Wdphi[3];
+    for (int i = 0; i < 3; ++i) {
+      Wtu[i] = Wm[3 * i] * u[0] + Wm[3 * i + 1] * u[1] + Wm[3 * i + 2] * u[2];
+      Wdphi[i] = Wm[i] * dphi[0] + Wm[3 + i] * dphi[1] + Wm[6 + i] * dphi[2];
+    }
+    const vg tr = Wm[0] + Wm[4] + Wm[8];
+    vg Pv[6];  // P_kl = u . T(:, kl)
+    for (int kl = 0; kl < 6; ++kl) Pv[kl] = u[0] * T[3 * kl] + u[1] * T[3 * kl + 1] + u[2] * T[3 * kl + 2];
+    // q_l = sum_k T(k, kl)
+    const vg q[3] = {T[0] + T[10] + T[14], T[9] + T[4] + T[17], T[12] + T[16] + T[8]};
+    const vg Pu[3] = {Pv[0] * u[0] + Pv[3] * u[1] + Pv[4] * u[2], Pv[3] * u[0] + Pv[1] * u[1] + Pv[5] * u[2],
+                      Pv[4] * u[0] + Pv[5] * u[1] + Pv[2] * u[2]};
+    const vg uPu = u[0] * Pu[0] + u[1] * Pu[1] + u[2] * Pu[2];
+    const vg SP = c4 * (Pv[0] + Pv[1] + Pv[2]) + c24 * uPu;  // S : P
+    const vg dWtu = dphi[0] * Wtu[0] + dphi[1] * Wtu[1] + dphi[2] * Wtu[2];
+    const vg dq = dphi[0] * q[0] + dphi[1] * q[1] + dphi[2] * q[2];
+    // g = u (-phi uV - dphi.Wtu - phi tr - SP/2 - dphi.q) - phi Wtu - c4 P u - phi q
+    const vg cu = vv * (-phi * (uV + tr) - dWtu - 0.5 * SP - dq);
+    const vg vphi = vv * phi, vc4 = vv * c4;
+    for (int i = 0; i < 3; ++i) acc[i] += cu * u[i] - vphi * (Wtu[i] + q[i]) - vc4 * Pu[i];
+    // J = u a^T - Wtu dphi^T + c I - phi W^T, a = -(c4 Wtu + c24 (u.Wtu) u) - W dphi - (tr + uV) dphi - phi V,
+    // c = -u.(W dphi) - phi (tr + uV)
+    const vg uWtu = u[0] * Wtu[0] + u[1] * Wtu[1] + u[2] * Wtu[2];
+    const vg trV = tr + uV;
+    vg a[3], vdphi[3];
+    for (int i = 0; i < 3; ++i) {
+      a[i] = vv * (-(c4 * Wtu[i] + c24 * uWtu * u[i]) - Wdphi[i] - trV * dphi[i] - phi * V[i]);
+      vdphi[i] = vv * dphi[i];
+    }
+    const vg c = vv * (-(u[0] * Wdphi[0] + u[1] * Wdphi[1] + u[2] * Wdphi[2]) - phi * trV);
+    for (int col = 0; col < 3; ++col)
+      for (int row = 0; row < 3; ++row) {
+        vg t = u[row] * a[col] - Wtu[row] * vdphi[col] - vphi * Wm[3 * row + col];
+        if (row == col) t += c;
+        acc[3 + 3 * col + row] += t;
+      }
+    // H_kl = u alpha_kl + e_l w_k + e_k w_l, alpha_kl = -S_kl uV - dphi_k V_l - dphi_l V_k, w = -phi V - uV dphi
+    vg w[3];
+    for (int i = 0; i < 3; ++i) w[i] = -vphi * V[i] - uV * vdphi[i];
+    const vg vc24uV = vv * c24 * uV;
+    for (int kl = 0; kl < 6; ++kl) {
+      const int k = kK[kl], l = kL[kl];
+      vg alpha = -vc24uV * u[k] * u[l] - vdphi[k] * V[l] - vdphi[l] * V[k];
+      if (k == l) alpha -= vc4 * uV;
+      for (int row = 0; row < 3; ++row) acc[12 + 3 * kl + row] += alpha * u[row];
+      acc[12 + 3 * kl + l] += w[k];
+      acc[12 + 3 * kl + k] += w[l];
+    }
+  }
+  for (int c = 0; c < 30; ++c) {
+    double s = 0;
+    for (int k = 0; k < L; ++k) s += acc[c][k];
+    out[c] += s;
+  }
+}
+
 }  // namespace
 
 const BatchKernels& LAMBERT_CAT(batch_kernels_, LAMBERT_ISA_SUFFIX)() {
-  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &eval_centroid, &transpose};
+  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &eval_centroid, &transpose, &gather_links};
   return k;
 }
 
