@@ -1,7 +1,8 @@
 // Hierarchical operator: the cluster tree and the refinement oracle that creates the links (hierarchy.hpp).
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
-#include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <cmath>
 #include <mutex>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <span>
 #include <string>
@@ -187,12 +189,62 @@ struct FarRecord {
 };
 struct LeafRecord {
   int i, j;
-  double Fij, Fji, err_ij, err_ji, sig_ij, sig_ji;
+  double Fij, Fji;
+  float err_ij, err_ji, sig_ij, sig_ji;  // admitted kernel error and visibility sigma of F_ij, F_ji
+};
+// Bytes a leaf link holds at the build's peak: its record and its two stored entries (index + factor).
+constexpr std::size_t kLinkPeakBytes = sizeof(LeafRecord) + 2 * (sizeof(int) + sizeof(double));
+
+// Append-only storage in fixed blocks: growing it copies nothing and leaves no doubling slack (the link records
+// of a 300k-patch building are gigabytes).
+template <class T>
+class Chunked {
+ public:
+  void push_back(const T& v) {
+    if (size_ % kBlock == 0) blocks_.emplace_back(new T[kBlock]);
+    blocks_.back()[size_ % kBlock] = v;
+    ++size_;
+  }
+  std::size_t size() const { return size_; }
+  template <class F>
+  void for_each(F&& f) const {
+    for (std::size_t k = 0; k < size_; ++k) f(blocks_[k / kBlock][k % kBlock]);
+  }
+  void clear() {
+    blocks_.clear();
+    blocks_.shrink_to_fit();
+    size_ = 0;
+  }
+
+ private:
+  static constexpr std::size_t kBlock = std::size_t(1) << 15;
+  std::vector<std::unique_ptr<T[]>> blocks_;
+  std::size_t size_ = 0;
 };
 
+// Rows [0, rows) of a CSR (off, src, val) in the order the records came: each row's entries sorted by source
+// (a link's two nodes or patches are one pair only once, so the order is unique: the same for any thread count).
+template <class V>
+void sort_rows(const std::vector<std::int64_t>& off, std::vector<int>& src, std::vector<V>& val) {
+  const int rows = int(off.size()) - 1;
+  tbb::parallel_for(tbb::blocked_range<int>(0, rows, 512), [&](const tbb::blocked_range<int>& r) {
+    std::vector<std::pair<int, V>> row;
+    for (int k = r.begin(); k < r.end(); ++k) {
+      const std::int64_t e0 = off[size_t(k)], e1 = off[size_t(k) + 1];
+      row.clear();
+      for (std::int64_t e = e0; e < e1; ++e) row.push_back({src[size_t(e)], val[size_t(e)]});
+      std::sort(row.begin(), row.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+      for (std::int64_t e = e0; e < e1; ++e) {
+        src[size_t(e)] = row[size_t(e - e0)].first;
+        val[size_t(e)] = row[size_t(e - e0)].second;
+      }
+    }
+  });
+}
+
 struct Local {
-  std::vector<FarRecord> far;
-  std::vector<LeafRecord> leaf;
+  Chunked<FarRecord> far;
+  Chunked<LeafRecord> leaf;
   long long culled = 0, cell_culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   detail::SampleBuffers sb;
@@ -290,9 +342,10 @@ class Refiner {
 
   void check_memory() {
     const long long k = links_.fetch_add(1) + 1;
-    if ((k & 0xFFFF) == 0 && std::size_t(k) * 56 + d_.bytes() > limit_)
+    if ((k & 0xFFFF) == 0 && std::size_t(k) * kLinkPeakBytes + d_.bytes() > limit_)
       throw InputError("hierarchical operator: the links outgrow the memory limit (" + std::to_string(k) +
-                       " links so far, ~" + std::to_string((std::size_t(k) * 56 + d_.bytes()) >> 20) + " MB, limit " +
+                       " links so far, ~" + std::to_string((std::size_t(k) * kLinkPeakBytes + d_.bytes()) >> 20) +
+                       " MB, limit " +
                        std::to_string(limit_ >> 20) +
                        " MB); raise --hierarchy-tolerance, use fewer patches (--max-edge) or more memory");
   }
@@ -558,7 +611,8 @@ class Refiner {
     const double Fts = Fst * ratio, es = e.error + exact_error, et = es * ratio, ss = sigma, sst = sigma * ratio;
     check_memory();
     if (Fst > 0)
-      loc.leaf.push_back(swap ? LeafRecord{i, j, Fts, Fst, et, es, sst, ss} : LeafRecord{i, j, Fst, Fts, es, et, ss, sst});
+      loc.leaf.push_back(swap ? LeafRecord{i, j, Fts, Fst, float(et), float(es), float(sst), float(ss)}
+                             : LeafRecord{i, j, Fst, Fts, float(es), float(et), float(ss), float(sst)});
   }
 
   const mesh::PatchGeometry& g_;
@@ -705,12 +759,12 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     rf.link_tol_ = st.link_tolerance;
     rf.setup(occ, cells);
     rf.run();
-    // Gather the records, sorted: the stored operator does not depend on the thread count.
-    std::vector<FarRecord> far;
-    std::vector<LeafRecord> leaf;
+    // The records into the stored rows, thread by thread (each thread's records freed as soon as they are
+    // placed: no merged copy), then each row sorted by source: the stored operator does not depend on the thread
+    // count.
+    long long far_records = 0;
     for (Local& l : rf.locals) {
-      far.insert(far.end(), l.far.begin(), l.far.end());
-      leaf.insert(leaf.end(), l.leaf.begin(), l.leaf.end());
+      far_records += (long long)l.far.size();
       st.pairs_culled += l.culled;
       st.pairs_cell_culled += l.cell_culled;
       st.links_shaft_clear += l.shaft_clear;
@@ -724,63 +778,66 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       st.pairs_exact_over_tolerance += l.exact_over;
       st.pairs_ray_tested += l.pair_ray_tested;
       st.pairs_shaft_clear += l.pair_shaft_clear;
-      std::vector<FarRecord>().swap(l.far);
-      std::vector<LeafRecord>().swap(l.leaf);
     }
-    st.far_links = (long long)far.size() - st.links_blocked;
-    st.leaf_links = (long long)leaf.size();
+    st.far_links = far_records - st.links_blocked;
     st.far_links_per_level.assign(size_t(st.levels), 0);
     const int nn = int(d.nodes.size());
     std::vector<double> err(nn, 0.0), lerr(nn, 0.0);  // admitted per receiver node
     {
-      std::vector<std::pair<std::int64_t, std::pair<int, float>>> dir;  // (receiver << 32 | source, vis)
-      dir.reserve(far.size() * 2);
-      for (const FarRecord& r : far) {
-        if (r.vis > 0) {  // blocked links (vis 0) carry nothing: only their admitted error is kept
-          dir.push_back({(std::int64_t(r.a) << 32) | std::int64_t(r.b), {r.b, r.vis}});
-          dir.push_back({(std::int64_t(r.b) << 32) | std::int64_t(r.a), {r.a, r.vis}});
-        }
-        err[r.a] += r.err_ab;
-        err[r.b] += r.err_ba;
-        lerr[r.a] += r.lerr_ab;
-        lerr[r.b] += r.lerr_ba;
-        if (r.vis > 0) ++st.far_links_per_level[size_t(std::max(d.nodes[r.a].level, d.nodes[r.b].level))];
-      }
-      std::vector<FarRecord>().swap(far);
-      tbb::parallel_sort(dir.begin(), dir.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
       d.far_off.assign(size_t(nn) + 1, 0);
-      d.far_src.resize(dir.size());
-      d.far_vis.resize(dir.size());
-      for (size_t k = 0; k < dir.size(); ++k) {
-        ++d.far_off[size_t(dir[k].first >> 32) + 1];
-        d.far_src[k] = dir[k].second.first;
-        d.far_vis[k] = dir[k].second.second;
-      }
+      for (Local& l : rf.locals)
+        l.far.for_each([&](const FarRecord& r) {
+          if (r.vis > 0) ++d.far_off[size_t(r.a) + 1], ++d.far_off[size_t(r.b) + 1];
+        });
       for (int k = 0; k < nn; ++k) d.far_off[k + 1] += d.far_off[k];
+      d.far_src.resize(size_t(d.far_off[nn]));
+      d.far_vis.resize(size_t(d.far_off[nn]));
+      std::vector<std::int64_t> at(d.far_off.begin(), d.far_off.end() - 1);
+      for (Local& l : rf.locals) {
+        l.far.for_each([&](const FarRecord& r) {
+          if (r.vis > 0) {  // blocked links (vis 0) carry nothing: only their admitted error is kept
+            const std::int64_t ea = at[size_t(r.a)]++, eb = at[size_t(r.b)]++;
+            d.far_src[size_t(ea)] = r.b;
+            d.far_vis[size_t(ea)] = r.vis;
+            d.far_src[size_t(eb)] = r.a;
+            d.far_vis[size_t(eb)] = r.vis;
+            ++st.far_links_per_level[size_t(std::max(d.nodes[r.a].level, d.nodes[r.b].level))];
+          }
+          err[r.a] += r.err_ab;
+          err[r.b] += r.err_ba;
+          lerr[r.a] += r.lerr_ab;
+          lerr[r.b] += r.lerr_ba;
+        });
+        l.far.clear();
+      }
+      sort_rows(d.far_off, d.far_src, d.far_vis);
     }
     {
-      std::vector<std::pair<std::int64_t, double>> dir;
-      dir.reserve(leaf.size() * 2);
       st.row_visibility_sigma.assign(n, 0.0);
-      for (const LeafRecord& r : leaf) {
-        st.row_visibility_sigma[r.i] += r.sig_ij * r.sig_ij;
-        st.row_visibility_sigma[r.j] += r.sig_ji * r.sig_ji;
-        dir.push_back({(std::int64_t(r.i) << 32) | std::int64_t(r.j), r.Fij});
-        dir.push_back({(std::int64_t(r.j) << 32) | std::int64_t(r.i), r.Fji});
-        err[d.leaf_of[r.i]] += r.err_ij;
-        err[d.leaf_of[r.j]] += r.err_ji;
-      }
-      std::vector<LeafRecord>().swap(leaf);
-      tbb::parallel_sort(dir.begin(), dir.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
       d.leaf_off.assign(size_t(n) + 1, 0);
-      d.leaf_src.resize(dir.size());
-      d.leaf_F.resize(dir.size());
-      for (size_t k = 0; k < dir.size(); ++k) {
-        ++d.leaf_off[size_t(dir[k].first >> 32) + 1];
-        d.leaf_src[k] = int(dir[k].first & 0xFFFFFFFF);
-        d.leaf_F[k] = dir[k].second;
+      for (Local& l : rf.locals) {
+        st.leaf_links += (long long)l.leaf.size();
+        l.leaf.for_each([&](const LeafRecord& r) { ++d.leaf_off[size_t(r.i) + 1], ++d.leaf_off[size_t(r.j) + 1]; });
       }
       for (int k = 0; k < n; ++k) d.leaf_off[k + 1] += d.leaf_off[k];
+      d.leaf_src.resize(size_t(d.leaf_off[n]));
+      d.leaf_F.resize(size_t(d.leaf_off[n]));
+      std::vector<std::int64_t> at(d.leaf_off.begin(), d.leaf_off.end() - 1);
+      for (Local& l : rf.locals) {
+        l.leaf.for_each([&](const LeafRecord& r) {
+          st.row_visibility_sigma[r.i] += double(r.sig_ij) * r.sig_ij;
+          st.row_visibility_sigma[r.j] += double(r.sig_ji) * r.sig_ji;
+          const std::int64_t ei = at[size_t(r.i)]++, ej = at[size_t(r.j)]++;
+          d.leaf_src[size_t(ei)] = r.j;
+          d.leaf_F[size_t(ei)] = r.Fij;
+          d.leaf_src[size_t(ej)] = r.i;
+          d.leaf_F[size_t(ej)] = r.Fji;
+          err[d.leaf_of[r.i]] += r.err_ij;
+          err[d.leaf_of[r.j]] += r.err_ji;
+        });
+        l.leaf.clear();
+      }
+      sort_rows(d.leaf_off, d.leaf_src, d.leaf_F);
     }
     // Admitted error per patch: the sum over its ancestors' links (push down).
     for (int k = 1; k < nn; ++k) {
