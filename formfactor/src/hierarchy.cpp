@@ -188,9 +188,9 @@ struct FarRecord {
   float lerr_ab, lerr_ba;  // the same times Lmax of the source, relative to L_ref
 };
 struct LeafRecord {
-  int i, j;
-  double Fij, Fji;
-  float err_ij, err_ji, sig_ij, sig_ji;  // admitted kernel error and visibility sigma of F_ij, F_ji
+  int s, t;      // the pair's source (the smaller area) and target
+  double Fst;    // F_ts = F_st A_s / A_t is formed when the record is stored
+  float es, ss;  // admitted kernel error and visibility sigma of F_st (those of F_ts scale with A_s / A_t)
 };
 // Bytes a leaf link holds at the build's peak: its record and its two stored entries (index + factor).
 constexpr std::size_t kLinkPeakBytes = sizeof(LeafRecord) + 2 * (sizeof(int) + sizeof(double));
@@ -607,12 +607,8 @@ class Refiner {
         ++loc.pair_shaft_clear;
       }
     }
-    const double ratio = g_.area[s] / g_.area[t];
-    const double Fts = Fst * ratio, es = e.error + exact_error, et = es * ratio, ss = sigma, sst = sigma * ratio;
     check_memory();
-    if (Fst > 0)
-      loc.leaf.push_back(swap ? LeafRecord{i, j, Fts, Fst, float(et), float(es), float(sst), float(ss)}
-                             : LeafRecord{i, j, Fst, Fts, float(es), float(et), float(ss), float(sst)});
+    if (Fst > 0) loc.leaf.push_back(LeafRecord{s, t, Fst, float(e.error + exact_error), float(sigma)});
   }
 
   const mesh::PatchGeometry& g_;
@@ -817,7 +813,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       d.leaf_off.assign(size_t(n) + 1, 0);
       for (Local& l : rf.locals) {
         st.leaf_links += (long long)l.leaf.size();
-        l.leaf.for_each([&](const LeafRecord& r) { ++d.leaf_off[size_t(r.i) + 1], ++d.leaf_off[size_t(r.j) + 1]; });
+        l.leaf.for_each([&](const LeafRecord& r) { ++d.leaf_off[size_t(r.s) + 1], ++d.leaf_off[size_t(r.t) + 1]; });
       }
       for (int k = 0; k < n; ++k) d.leaf_off[k + 1] += d.leaf_off[k];
       d.leaf_src.resize(size_t(d.leaf_off[n]));
@@ -825,15 +821,16 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       std::vector<std::int64_t> at(d.leaf_off.begin(), d.leaf_off.end() - 1);
       for (Local& l : rf.locals) {
         l.leaf.for_each([&](const LeafRecord& r) {
-          st.row_visibility_sigma[r.i] += double(r.sig_ij) * r.sig_ij;
-          st.row_visibility_sigma[r.j] += double(r.sig_ji) * r.sig_ji;
-          const std::int64_t ei = at[size_t(r.i)]++, ej = at[size_t(r.j)]++;
-          d.leaf_src[size_t(ei)] = r.j;
-          d.leaf_F[size_t(ei)] = r.Fij;
-          d.leaf_src[size_t(ej)] = r.i;
-          d.leaf_F[size_t(ej)] = r.Fji;
-          err[d.leaf_of[r.i]] += r.err_ij;
-          err[d.leaf_of[r.j]] += r.err_ji;
+          const double ratio = g.area[r.s] / g.area[r.t], sst = r.ss * ratio;
+          st.row_visibility_sigma[r.s] += double(r.ss) * r.ss;
+          st.row_visibility_sigma[r.t] += sst * sst;
+          const std::int64_t es = at[size_t(r.s)]++, et = at[size_t(r.t)]++;
+          d.leaf_src[size_t(es)] = r.t;
+          d.leaf_F[size_t(es)] = r.Fst;
+          d.leaf_src[size_t(et)] = r.s;
+          d.leaf_F[size_t(et)] = r.Fst * ratio;
+          err[d.leaf_of[r.s]] += r.es;
+          err[d.leaf_of[r.t]] += r.es * ratio;
         });
         l.leaf.clear();
       }
