@@ -243,8 +243,9 @@ void sort_rows(const std::vector<std::int64_t>& off, std::vector<int>& src, std:
 }
 
 struct Local {
-  Chunked<FarRecord> far;
+  Chunked<FarRecord> far;  // links that carry light (blocked links keep only their admitted error, below)
   Chunked<LeafRecord> leaf;
+  std::vector<double> blocked_err, blocked_lerr;  // per node: admitted error of its blocked links (or empty)
   long long culled = 0, cell_culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   detail::SampleBuffers sb;
@@ -491,7 +492,14 @@ class Refiner {
       if (!(k_hi * B.area * u_rays * lb <= tol && k_hi * A.area * u_rays * la <= tol)) return false;
       const double err_ab = std::min(1.0, k_hi * B.area * u_rays), err_ba = std::min(1.0, k_hi * A.area * u_rays);
       ++loc.blocked;
-      loc.far.push_back({a, b, 0.0f, float(err_ab), float(err_ba), float(err_ab * lb), float(err_ba * la)});
+      if (loc.blocked_err.empty()) {
+        loc.blocked_err.assign(d_.nodes.size(), 0.0);
+        loc.blocked_lerr.assign(d_.nodes.size(), 0.0);
+      }
+      loc.blocked_err[size_t(a)] += float(err_ab);
+      loc.blocked_err[size_t(b)] += float(err_ba);
+      loc.blocked_lerr[size_t(a)] += float(err_ab * lb);
+      loc.blocked_lerr[size_t(b)] += float(err_ba * la);
       return true;
     }
     if (!ok(err, err)) return false;
@@ -775,15 +783,20 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       st.pairs_ray_tested += l.pair_ray_tested;
       st.pairs_shaft_clear += l.pair_shaft_clear;
     }
-    st.far_links = far_records - st.links_blocked;
+    st.far_links = far_records;
     st.far_links_per_level.assign(size_t(st.levels), 0);
     const int nn = int(d.nodes.size());
     std::vector<double> err(nn, 0.0), lerr(nn, 0.0);  // admitted per receiver node
+    for (Local& l : rf.locals) {
+      for (size_t k = 0; k < l.blocked_err.size(); ++k) err[k] += l.blocked_err[k], lerr[k] += l.blocked_lerr[k];
+      std::vector<double>().swap(l.blocked_err);
+      std::vector<double>().swap(l.blocked_lerr);
+    }
     {
       d.far_off.assign(size_t(nn) + 1, 0);
       for (Local& l : rf.locals)
         l.far.for_each([&](const FarRecord& r) {
-          if (r.vis > 0) ++d.far_off[size_t(r.a) + 1], ++d.far_off[size_t(r.b) + 1];
+          if (r.vis > 0) ++d.far_off[size_t(r.a) + 1], ++d.far_off[size_t(r.b) + 1];  // vis 0: nothing to store
         });
       for (int k = 0; k < nn; ++k) d.far_off[k + 1] += d.far_off[k];
       d.far_src.resize(size_t(d.far_off[nn]));
@@ -791,7 +804,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       std::vector<std::int64_t> at(d.far_off.begin(), d.far_off.end() - 1);
       for (Local& l : rf.locals) {
         l.far.for_each([&](const FarRecord& r) {
-          if (r.vis > 0) {  // blocked links (vis 0) carry nothing: only their admitted error is kept
+          if (r.vis > 0) {
             const std::int64_t ea = at[size_t(r.a)]++, eb = at[size_t(r.b)]++;
             d.far_src[size_t(ea)] = r.b;
             d.far_vis[size_t(ea)] = r.vis;
