@@ -16,6 +16,7 @@
 #include <span>
 #include <string>
 
+#include "batch.hpp"
 #include "hierarchy_internal.hpp"
 #include "enclosures.hpp"
 #include "exact_visibility.hpp"
@@ -653,6 +654,7 @@ std::size_t HierarchicalOperator::Impl::bytes() const {
   return nodes.capacity() * sizeof(detail::HNode) + perm.capacity() * 4 + leaf_of.capacity() * 4 +
          far_off.capacity() * 8 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
          leaf_src.capacity() * 4 + leaf_F.capacity() * 8 + row_sums.capacity() * 8 +
+         nodes.size() * (detail::kMomentRecord + 30) * 8 +  // one set of apply()'s work arrays
          std::size_t(n) * (sizeof(Vec3) * 2 + 8 * 5 + 48 + 1) +
          [&] {
            std::size_t b = 0;

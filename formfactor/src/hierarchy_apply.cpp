@@ -3,11 +3,14 @@
 // entry by entry; the memory limit.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <array>
 #include <cstdio>
 #include <fstream>
+#include <memory>
+#include <mutex>
 #include <string>
 
 #include <unistd.h>
@@ -43,99 +46,141 @@ constexpr double kMult[6] = {1, 1, 1, 2, 2, 2};  // sum over k, l of a symmetric
 
 }  // namespace
 
+namespace {
+
+constexpr int kRec = detail::kMomentRecord;  // per node: centre, V, W, T (batch.hpp)
+constexpr int kAcc = 30;                     // per node: g, J, H of the expansion about its centre
+constexpr int kParallelPatches = 8192;       // subtrees at least this large are pulled / pushed as parallel tasks
+
+// Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, b = point - node centre (each
+// patch's own second moments included), children before parents.
+void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::VectorXd>& x, double* rec, int k) {
+  const HNode& nd = d.nodes[size_t(k)];
+  double* r = rec + size_t(k) * kRec;
+  Eigen::Map<Vec3> V(r + 3);
+  Eigen::Map<Mat3> W(r + 6);
+  Eigen::Map<Mat36> T(r + 15);
+  if (nd.leaf()) {
+    const int p = d.perm[size_t(nd.begin)];
+    V = d.g->area[p] * x[p] * d.g->normal[p];
+    W.setZero();
+    for (int kl = 0; kl < 6; ++kl) T.col(kl) = V * d.P.M[p][kl];
+    return;
+  }
+  if (nd.end - nd.begin >= kParallelPatches)
+    tbb::parallel_invoke([&] { pull(d, x, rec, nd.left); }, [&] { pull(d, x, rec, nd.right); });
+  else {
+    pull(d, x, rec, nd.left);
+    pull(d, x, rec, nd.right);
+  }
+  V.setZero();
+  W.setZero();
+  T.setZero();
+  for (const int c : {nd.left, nd.right}) {
+    const double* rc = rec + size_t(c) * kRec;
+    const Eigen::Map<const Vec3> Vc(rc + 3);
+    const Eigen::Map<const Mat3> Wc(rc + 6);
+    const Eigen::Map<const Mat36> Tc(rc + 15);
+    const Vec3 dl = d.nodes[size_t(c)].c - nd.c;
+    V += Vc;
+    W += Wc + Vc * dl.transpose();
+    for (int kl = 0; kl < 6; ++kl) {
+      const int a = kK[kl], b = kL[kl];
+      T.col(kl) += Tc.col(kl) + Wc.col(a) * dl[b] + Wc.col(b) * dl[a] + Vc * (dl[a] * dl[b]);
+    }
+  }
+}
+
+// Push: a child at offset a from its parent's centre receives g - J a + H[a,a]/2, J - H[a,.] and H; node k's
+// own record is final when it is called.
+void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
+  const HNode& nd = d.nodes[size_t(k)];
+  if (nd.leaf()) return;
+  const double* rp = acc + size_t(k) * kAcc;
+  const Eigen::Map<const Vec3> Gp(rp);
+  const Eigen::Map<const Mat3> Jp(rp + 3);
+  const Eigen::Map<const Mat36> Hp(rp + 12);
+  for (const int c : {nd.left, nd.right}) {
+    const Vec3 a = d.nodes[size_t(c)].c - nd.c;
+    Vec3 Haa = Vec3::Zero();
+    Mat3 Ha = Mat3::Zero();  // column l: sum_k H_kl a_k
+    for (int kl = 0; kl < 6; ++kl) {
+      const int kk = kK[kl], ll = kL[kl];
+      Haa += kMult[kl] * a[kk] * a[ll] * Hp.col(kl);
+      Ha.col(ll) += a[kk] * Hp.col(kl);
+      if (kk != ll) Ha.col(kk) += a[ll] * Hp.col(kl);
+    }
+    double* rc = acc + size_t(c) * kAcc;
+    Eigen::Map<Vec3>(rc) += Gp - Jp * a + 0.5 * Haa;
+    Eigen::Map<Mat3>(rc + 3) += Jp - Ha;
+    Eigen::Map<Mat36>(rc + 12) += Hp;
+  }
+  if (nd.end - nd.begin >= kParallelPatches)
+    tbb::parallel_invoke([&] { push(d, acc, nd.left); }, [&] { push(d, acc, nd.right); });
+  else {
+    push(d, acc, nd.left);
+    push(d, acc, nd.right);
+  }
+}
+
+}  // namespace
+
+// Work arrays of one product, kept between products (a million-patch operator's are ~1 GB: allocating and
+// first touching them on every product cost more than the arithmetic).
+struct HierarchicalOperator::Impl::Scratch {
+  std::vector<double> rec, acc;
+};
+HierarchicalOperator::Impl::~Impl() = default;
+
 void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
   const Impl& d = *d_;
   const int n = d.n, nn = int(d.nodes.size());
   if (n == 0) return;
   const mesh::PatchGeometry& g = *d.g;
   const detail::PatchData& P = d.P;
-  // Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, b = point - node centre (each
-  // patch's own second moments included); children after parents: reverse order.
-  struct Moments {
-    Vec3 V;
-    Mat3 W;
-    Mat36 T;
-  };
-  std::vector<Moments> mom(static_cast<size_t>(nn));
-  auto V = [&](int k) -> Vec3& { return mom[size_t(k)].V; };
-  auto W = [&](int k) -> Mat3& { return mom[size_t(k)].W; };
-  auto T = [&](int k) -> Mat36& { return mom[size_t(k)].T; };
-  for (int k = nn - 1; k >= 0; --k) {
-    const HNode& nd = d.nodes[k];
-    if (nd.leaf()) {
-      const int p = d.perm[nd.begin];
-      V(k) = g.area[p] * x[p] * g.normal[p];
-      W(k).setZero();
-      for (int kl = 0; kl < 6; ++kl) T(k).col(kl) = V(k) * P.M[p][kl];
-    } else {
-      T(k).setZero();
-      W(k).setZero();
-      V(k).setZero();
-      for (const int c : {nd.left, nd.right}) {
-        const Vec3 dl = d.nodes[c].c - nd.c;
-        V(k) += V(c);
-        W(k) += W(c) + V(c) * dl.transpose();
-        for (int kl = 0; kl < 6; ++kl) {
-          const int a = kK[kl], b = kL[kl];
-          T(k).col(kl) += T(c).col(kl) + W(c).col(a) * dl[b] + W(c).col(b) * dl[a] + V(c) * (dl[a] * dl[b]);
-        }
-      }
+  std::unique_ptr<Impl::Scratch> S;
+  {
+    std::lock_guard lock(d.scratch_mutex);
+    if (!d.scratch.empty()) {
+      S = std::move(d.scratch.back());
+      d.scratch.pop_back();
     }
   }
-  // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
-  // stored order (deterministic for any thread count). One record per node, the gather reads a source's centre
-  // and moments at once.
-  std::vector<double> rec(static_cast<size_t>(nn) * detail::kMomentRecord);
-  for (int k = 0; k < nn; ++k) {
-    double* r = rec.data() + static_cast<size_t>(k) * detail::kMomentRecord;
-    std::copy_n(d.nodes[k].c.data(), 3, r);
-    std::copy_n(V(k).data(), 3, r + 3);
-    std::copy_n(W(k).data(), 9, r + 6);
-    std::copy_n(T(k).data(), 18, r + 15);
+  if (!S) {
+    S = std::make_unique<Impl::Scratch>();
+    S->rec.resize(size_t(nn) * kRec);
+    S->acc.resize(size_t(nn) * kAcc);
+    for (int k = 0; k < nn; ++k) std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rec.data() + size_t(k) * kRec);
   }
-  std::vector<Vec3> G(nn, Vec3::Zero());
-  std::vector<Mat3> J(nn, Mat3::Zero());
-  std::vector<Mat36> H(nn, Mat36::Zero());
+  double* rec = S->rec.data();
+  double* acc = S->acc.data();
+  pull(d, x, rec, 0);
+  // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
+  // stored order (deterministic for any thread count).
   const detail::BatchKernels& K = detail::batch_kernels();
   tbb::parallel_for(tbb::blocked_range<int>(0, nn, 256), [&](const tbb::blocked_range<int>& r) {
     for (int k = r.begin(); k < r.end(); ++k) {
+      double* out = acc + size_t(k) * kAcc;
+      std::fill_n(out, kAcc, 0.0);
       const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
-      if (e0 == e1) continue;
-      double out[30] = {};
-      K.gather_links(rec.data(), d.nodes[k].c.data(), d.far_src.data() + e0, d.far_vis.data() + e0, e1 - e0, out);
-      G[k] = Eigen::Map<const Vec3>(out);
-      J[k] = Eigen::Map<const Mat3>(out + 3);
-      H[k] = Eigen::Map<const Mat36>(out + 12);
+      if (e0 < e1) K.gather_links(rec, d.nodes[size_t(k)].c.data(), d.far_src.data() + e0, d.far_vis.data() + e0, e1 - e0, out);
     }
   });
-  // Push: a child at offset a from its parent's centre receives g - J a + H[a,a]/2, J - H[a,.] and H.
-  for (int k = 1; k < nn; ++k) {
-    const HNode& nd = d.nodes[k];
-    const int p = nd.parent;
-    const Vec3 a = nd.c - d.nodes[p].c;
-    Vec3 Haa = Vec3::Zero();
-    Mat3 Ha = Mat3::Zero();  // column l: sum_k H_kl a_k
-    for (int kl = 0; kl < 6; ++kl) {
-      const int kk = kK[kl], ll = kL[kl];
-      Haa += kMult[kl] * a[kk] * a[ll] * H[p].col(kl);
-      Ha.col(ll) += a[kk] * H[p].col(kl);
-      if (kk != ll) Ha.col(kk) += a[ll] * H[p].col(kl);
-    }
-    G[k] += G[p] - J[p] * a + 0.5 * Haa;
-    J[k] += J[p] - Ha;
-    H[k] += H[p];
-  }
+  push(d, acc, 0);
   // Leaves: n_i . (g + H : M_i / 2) (the patch's own extent) plus the exact entries.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
-      const int k = d.leaf_of[i];
-      Vec3 gi = G[k];
-      for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kMult[kl] * P.M[i][kl] * H[k].col(kl);
+      const double* ri = acc + size_t(d.leaf_of[i]) * kAcc;
+      Vec3 gi = Eigen::Map<const Vec3>(ri);
+      const Eigen::Map<const Mat36> H(ri + 12);
+      for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kMult[kl] * P.M[i][kl] * H.col(kl);
       double s = g.normal[i].dot(gi);
       for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) s += d.leaf_F[e] * x[d.leaf_src[e]];
       y[i] = s;
     }
   });
+  std::lock_guard lock(d.scratch_mutex);
+  d.scratch.push_back(std::move(S));
 }
 
 void HierarchicalOperator::for_each_in_row(int i, const std::function<void(int j, double F)>& f) const {

@@ -2,6 +2,7 @@
 // Internals of the hierarchical operator (hierarchy.hpp): the cluster tree and the stored links.
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 #include "internal.hpp"
@@ -50,6 +51,11 @@ struct HierarchicalOperator::Impl {
   std::vector<int> leaf_src;
   std::vector<double> leaf_F;
   std::vector<double> row_sums;
+  // Work arrays of apply(), reused between products (one set per concurrent caller; hierarchy_apply.cpp).
+  struct Scratch;
+  mutable std::mutex scratch_mutex;
+  mutable std::vector<std::unique_ptr<Scratch>> scratch;
+  ~Impl();
   std::size_t bytes() const;
 };
 
