@@ -22,7 +22,9 @@
 #include "../formfactor/src/enclosures.hpp"
 #include "lambert/formfactor/assemble.hpp"
 #include "lambert/formfactor/hierarchy.hpp"
+#include "lambert/io/readers.hpp"
 #include "lambert/mesh/geometry.hpp"
+#include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/shapes.hpp"
 #include "test_formfactor_util.hpp"
 
@@ -521,6 +523,24 @@ TEST(Enclosures, PatchCrossingAlongASeamGetsNoCell) {
   const fd::Enclosures e = cells_of(g);
   expect_not_separated(g, e, quad, outside, "seam-crossing quad vs outside panel");
   EXPECT_EQ(e.cell[quad], -1) << describe(g, e, quad) << " " << summary(e);
+}
+
+// A door opening of the floor plan: the floor's edge along the wall's base passes the corner of the door jamb that
+// stands on the floor, two patches of one closed surface meeting at a point. Nothing crosses anything there: every
+// patch of examples/floorplan.obj, prepared as `lambert solve` prepares it, gets a cell (10 jamb and floor patches
+// got none while a crossing through a patch's boundary counted against patches of the same surface). Exact counts.
+TEST(Enclosures, DoorJambsStandingOnTheFloorKeepTheirCells) {
+  mesh::PolygonSoup soup = io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj");
+  const mesh::Scene scene = mesh::prepare_and_build(soup, {});
+  const mesh::PatchGeometry& g = scene.geometry;
+  const fd::Enclosures e = cells_of(g);
+  EXPECT_EQ(e.surfaces, 4) << summary(e);
+  EXPECT_EQ(e.crossed, 0) << summary(e);
+  for (int p = 0; p < g.size(); ++p)
+    if (e.cell[p] < 0) {
+      ADD_FAILURE() << "patch without a cell: " << describe(g, e, p) << " " << summary(e);
+      break;
+    }
 }
 
 }  // namespace

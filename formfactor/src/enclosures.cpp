@@ -338,6 +338,11 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
     return out;
   }
   auto on_surface = [&](int p) { return surf[p][0] >= 0; };
+  auto share_surface = [&](int p, int q) {
+    for (int a : surf[p])
+      if (a >= 0 && (a == surf[q][0] || a == surf[q][1])) return true;
+    return false;
+  };
 
   // 5. Patches crossing a patch of a surface (an edge of one through the other, both ends more than eps off its
   // plane), or touched inside by a surface's edge: the front of either lies on both sides of some surface, so both
@@ -372,7 +377,10 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
           if (!(ha * hb < 0) || std::min(std::abs(ha), std::abs(hb)) <= eps) continue;
           const Vec3 y = A + (ha / (ha - hb)) * (B - A);
           // Through the interior, or through the boundary (a seam between two of the surface's patches): crossed.
-          if (polygon_side(g.polygon(q), nq, y, eps) >= 0) cr.push_back(pe), cr.push_back(q);
+          // Not through the boundary of a patch of its own surface: there two patches of one surface meet (a floor's
+          // edge along a wall's base passes the corner of a door jamb standing on it), nothing crosses.
+          const int side = polygon_side(g.polygon(q), nq, y, eps);
+          if (side > 0 || (side == 0 && !share_surface(pe, q))) cr.push_back(pe), cr.push_back(q);
         }
         // Contact inside a patch (a box standing on a floor that was not split where it stands): a surface's edge
         // lying in a patch's plane and inside it splits that patch's front. Probes at a quarter, half and three
