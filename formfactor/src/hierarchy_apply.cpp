@@ -44,10 +44,6 @@ using Mat36 = Eigen::Matrix<double, 3, 6>;  // a vector per symmetric index pair
 constexpr int kK[6] = {0, 1, 2, 0, 0, 1}, kL[6] = {0, 1, 2, 1, 2, 2};
 constexpr double kMult[6] = {1, 1, 1, 2, 2, 2};  // sum over k, l of a symmetric form = sum over kl of mult x
 
-}  // namespace
-
-namespace {
-
 constexpr int kRec = detail::kMomentRecord;  // per node: centre, V, W, T (batch.hpp)
 constexpr int kAcc = 30;                     // per node: g, J, H of the expansion about its centre
 constexpr int kParallelPatches = 8192;       // subtrees at least this large are pulled / pushed as parallel tasks
