@@ -43,8 +43,8 @@ struct Counters {
   long long culled = 0, shaft_culled = 0, ray_tested = 0, rays = 0, over_tolerance = 0, reused = 0, fixed = 0;
   long long no_visible_sample = 0;
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
-  long long plane_hidden = 0, plane_tests = 0;
-  long long cell_hidden = 0;  // pairs facing different cells (enclosures.hpp)  // pairs proven hidden by a separating plane; blocks and pairs tried
+  long long plane_hidden = 0, plane_tests = 0;  // pairs proven hidden by a separating plane; blocks and pairs tried
+  long long cell_hidden = 0;                    // pairs facing different cells (enclosures.hpp)
   double plane_seconds = 0;
   double tile_seconds = 0, visibility_seconds = 0;  // thread time in tiles, and in their visibility step
   double exact_seconds = 0, rays_seconds = 0;       // thread time of the two visibility paths
