@@ -557,6 +557,11 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
     s += fmt::format("  {}  {}\n", f.fatal ? "FAILED     " : f.key == "entries_roundoff" ? "note       " : "warning    ",
                      f.message);
   s += fmt::format("  phases       {}\n", phases_line(timer));
+  if (!r.scene->report.seconds.empty()) {
+    std::string stages;
+    for (const auto& [stage, sec] : r.scene->report.seconds) stages += fmt::format("{}{} {:.3g} s", stages.empty() ? "" : ", ", stage, sec);
+    s += fmt::format("  prepare      {}\n", stages);
+  }
   return s;
 }
 
@@ -751,6 +756,7 @@ int run_solve_adaptive(const CommonOptions& o, const solver::Options& so, PhaseT
   timer.stop();
   // The final scene's report covers validation; put the preparation's counts and warnings first.
   for (const auto& [k, v] : prep_report.counts) r.scene.report.counts[k] += v;
+  r.scene.report.seconds.insert(r.scene.report.seconds.begin(), prep_report.seconds.begin(), prep_report.seconds.end());
   r.scene.report.warnings.insert(r.scene.report.warnings.begin(), prep_report.warnings.begin(), prep_report.warnings.end());
   for (const auto& w : r.scene.report.warnings) say(o, "lambert: warning: " + w);
   std::string rounds;

@@ -457,6 +457,45 @@ TEST(RealModelsImprint, RoofOverhangingACornerIsSplitWhereverTheModelSits) {
   }
 }
 
+// Two coplanar faces that overlap (a slab drawn twice, shifted: CAD exports have them) are split along each other's
+// edges, so that no patch is partly under the other; a coplanar neighbour that meets one along an edge without
+// sharing its corners (a T-junction) is not split. The first part fails when the coplanar case is skipped, the
+// second when a neighbour along an edge counts as an overlap. Wherever the model sits.
+TEST(RealModelsImprint, OverlappingCoplanarFacesAreSplitAlongEachOthersEdgesNeighboursAreNot) {
+  for (const Vec3& off : {Vec3(0, 0, 0), Vec3(5e5, 4e6, 30)}) {
+    shapes::Polygons p;
+    auto at = [&](double x, double y) -> Vec3 { return off + Vec3(x, y, 0); };
+    p.push_back(quad(at(0, 0), at(2, 0), at(2, 2), at(0, 2)));      // A, facing +z
+    p.push_back(quad(at(1, 1), at(3, 1), at(3, 3), at(1, 3)));      // B, overlaps A in [1, 2]^2
+    p.push_back(quad(at(-2, 0.5), at(0, 0.5), at(0, 1.5), at(-2, 1.5)));  // D, meets A along x = 0 only
+    const PolygonSoup s = soup_from(p);
+    const Scene scene = prepare_and_build(s, {});
+    EXPECT_EQ(count(scene.report, "faces_imprinted"), 2) << "offset " << off.transpose() << all_warnings(scene.report);
+    // Per input face: its pieces tile it, and exactly one piece is the overlap [1, 2]^2 (area 1, every corner in it).
+    for (int face : {0, 1, 2}) {
+      double area = 0;
+      int pieces = 0, overlap_pieces = 0;
+      for (int k = 0; k < scene.patches(); ++k) {
+        if (scene.face_id[k] != face) continue;
+        ++pieces;
+        area += scene.geometry.area[k];
+        bool inside = true;
+        for (const Vec3& v : scene.geometry.polygon(k)) {
+          const Vec3 q = v - off;
+          inside = inside && q.x() >= 1 - 1e-9 && q.x() <= 2 + 1e-9 && q.y() >= 1 - 1e-9 && q.y() <= 2 + 1e-9;
+        }
+        if (inside) {
+          ++overlap_pieces;
+          EXPECT_NEAR(scene.geometry.area[k], 1.0, 1e-9) << "face " << face << " offset " << off.transpose();
+        }
+      }
+      EXPECT_NEAR(area, face == 2 ? 2.0 : 4.0, 1e-8) << "face " << face << " offset " << off.transpose();
+      EXPECT_EQ(pieces, face == 2 ? 1 : 2) << "face " << face << " offset " << off.transpose() << all_warnings(scene.report);
+      EXPECT_EQ(overlap_pieces, face == 2 ? 0 : 1) << "face " << face << " offset " << off.transpose();
+    }
+  }
+}
+
 // ---- the example storey ----------------------------------------------------------------------------
 
 TEST(RealModelsExample, StoreyShutRoomStaysDarkFromObjAndFromStl) {

@@ -5,6 +5,7 @@
 #include "union_find.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <map>
 #include <array>
 #include <cmath>
@@ -390,19 +391,36 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
     if (out.input_faces < 0) out.input_faces = static_cast<int>(out.faces.size());
     for (int k = 0; k < static_cast<int>(out.faces.size()); ++k) out.faces[k].origin = origin_of(out, k);
   }
+  // Each stage timed (Report::seconds: --stats and the summary line "prepare").
+  auto t0 = std::chrono::steady_clock::now();
+  auto stage = [&](const char* name) {
+    const auto t1 = std::chrono::steady_clock::now();
+    report.seconds.emplace_back(name, std::chrono::duration<double>(t1 - t0).count());
+    t0 = t1;
+  };
   const double tol = length_tolerance(out, options.weld_tolerance);
   if (options.repair) {
     weld(out, tol, report);
     clean_faces(out, report);
     remove_duplicate_faces(out, report);
+    stage("weld");
     orient(out, options.orient, report);
-    if (options.imprint) imprint(out, tol, report);
+    stage("orient");
+    if (options.imprint) {
+      imprint(out, tol, report);
+      stage("imprint");
+    }
   }
   std::vector<char> usable(out.faces.size());
   for (size_t k = 0; k < out.faces.size(); ++k) usable[k] = usable_face(out, static_cast<int>(k));
   detect_self_intersections(out, usable, tol, report);
+  stage("self_intersections");
   detect_t_junctions(out, usable, tol, report);
-  if (options.max_edge > 0) refine(out, options.max_edge, report, options.max_patches);
+  stage("t_junctions");
+  if (options.max_edge > 0) {
+    refine(out, options.max_edge, report, options.max_patches);
+    stage("refine");
+  }
   duplicate_two_sided(out, report);
   return out;
 }
@@ -410,7 +428,9 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
 Scene prepare_and_build(const PolygonSoup& soup, const PrepareOptions& options, const BuildOptions& build) {
   Report prep;
   const PolygonSoup ready = prepare(soup, options, prep);
+  const auto t0 = std::chrono::steady_clock::now();
   Scene scene = build_scene(ready, build);
+  prep.seconds.emplace_back("build", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   // Preparation first: it ran first, and build_scene's warnings are about the prepared faces.
   for (const auto& [key, count] : scene.report.counts) prep.counts[key] += count;
   prep.warnings.insert(prep.warnings.end(), scene.report.warnings.begin(), scene.report.warnings.end());

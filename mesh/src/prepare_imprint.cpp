@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <random>
 #include <string>
@@ -99,20 +100,24 @@ struct FaceData {
   std::vector<Vec3> poly;
   Vec3 n = Vec3::Zero();  // unit
   Vec3 u, v;              // plane basis, u x v = n
+  double thickness = 0;    // largest corner distance from the plane through poly[0] with normal n, plus rounding (m)
   std::vector<KE::Triangle_3> tris;
   std::vector<std::array<Vec3, 2>> cuts;  // segments to imprint (metres)
 };
 
 Eigen::Vector2d to2(const FaceData& f, const Vec3& p) { return {(p - f.poly[0]).dot(f.u), (p - f.poly[0]).dot(f.v)}; }
 
-void add_cut(FaceData& f, const Vec3& a, const Vec3& b, double tol) {
+// Cuts found for one pair of faces (f's and g's), applied to the faces in pair order afterwards.
+using Cuts = std::vector<std::array<Vec3, 2>>;
+
+void add_cut(const FaceData& f, Cuts& cuts, const Vec3& a, const Vec3& b, double tol) {
   if ((a - b).norm() <= tol) return;
   // On the face's boundary already: nothing to split.
   const Vec3 m = 0.5 * (a + b);
   if (distance_to_boundary(m, f.poly) <= tol && distance_to_boundary(a, f.poly) <= tol &&
       distance_to_boundary(b, f.poly) <= tol)
     return;
-  f.cuts.push_back({a, b});
+  cuts.push_back({a, b});
 }
 
 // Pieces of one line (direction d) found triangle by triangle, joined where they touch (within tol):
@@ -132,13 +137,56 @@ std::vector<std::array<Vec3, 2>> join_collinear(std::vector<std::array<Vec3, 2>>
   return out;
 }
 
-// Segments where face g meets face f (both directions are added by the caller).
-void intersect_pair(FaceData& f, FaceData& g, double tol) {
+// All of g's corners farther than f's own thickness (its corners' largest distance from its plane, plus
+// rounding) from f's plane, on one side: the faces cannot meet. A filter only (double precision, with margin):
+// the exact intersection below decides every pair it lets through. Most candidate pairs from boxes are
+// faces near each other that do not touch (furniture by a wall), and the exact test cost ~100 us per pair.
+bool separated_by_plane(const FaceData& f, const FaceData& g) {
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const Vec3& q : g.poly) {
+    const double d = f.n.dot(q - f.poly[0]);
+    lo = std::min(lo, d);
+    hi = std::max(hi, d);
+  }
+  return lo > f.thickness || hi < -f.thickness;
+}
+
+// Coplanar f and g whose overlap is a band narrower than `margin` along some line (an edge's normal in f's plane):
+// all of f's corners within `margin` on one side of the line, all of g's on the other. Every point common to
+// both is then within `margin` of either face's boundary, so clipping one's edges to the other finds only
+// segments on the boundary, which add_cut drops. A filter only (double precision; the caller passes half the
+// tolerance add_cut uses): most coplanar candidates are neighbours in one wall or floor that meet along an edge
+// without sharing its corners (T-junctions), and the exact clipping cost ~200 us per pair.
+bool separated_in_plane(const FaceData& f, const FaceData& g, double margin) {
+  auto in_plane = [&](const Vec3& p) { return Eigen::Vector2d((p - f.poly[0]).dot(f.u), (p - f.poly[0]).dot(f.v)); };
+  std::vector<Eigen::Vector2d> pf, pg;
+  for (const Vec3& p : f.poly) pf.push_back(in_plane(p));
+  for (const Vec3& p : g.poly) pg.push_back(in_plane(p));
+  auto separates = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    const Eigen::Vector2d e = b - a;
+    const double len = e.norm();
+    if (!(len > 0)) return false;
+    const Eigen::Vector2d nrm(e.y() / len, -e.x() / len);
+    double f_lo = std::numeric_limits<double>::infinity(), f_hi = -f_lo, g_lo = f_lo, g_hi = -f_lo;
+    for (const auto& p : pf) f_lo = std::min(f_lo, nrm.dot(p - a)), f_hi = std::max(f_hi, nrm.dot(p - a));
+    for (const auto& p : pg) g_lo = std::min(g_lo, nrm.dot(p - a)), g_hi = std::max(g_hi, nrm.dot(p - a));
+    return f_hi - g_lo <= margin || g_hi - f_lo <= margin;
+  };
+  for (size_t c = 0; c < pf.size(); ++c)
+    if (separates(pf[c], pf[(c + 1) % pf.size()])) return true;
+  for (size_t c = 0; c < pg.size(); ++c)
+    if (separates(pg[c], pg[(c + 1) % pg.size()])) return true;
+  return false;
+}
+
+// Segments where face g meets face f: into cf (f's) and cg (g's).
+void intersect_pair(const FaceData& f, const FaceData& g, double tol, Cuts& cf, Cuts& cg) {
   const bool parallel = f.n.cross(g.n).norm() <= 1e-9;
   const bool coplanar = parallel && std::abs(f.n.dot(g.poly[0] - f.poly[0])) <= tol;
+  if (coplanar && separated_in_plane(f, g, 0.5 * tol)) return;
   if (coplanar) {
     // Overlapping coplanar faces: each gets the other's edges, clipped to itself.
-    auto clip_edges = [&](FaceData& to, const FaceData& from) {
+    auto clip_edges = [&](const FaceData& to, const FaceData& from, Cuts& cuts) {
       for (size_t c = 0; c < from.poly.size(); ++c) {
         const KE::Segment_3 e(ke(from.poly[c]), ke(from.poly[(c + 1) % from.poly.size()]));
         // Project onto to's plane first (coplanar within tol, not exactly).
@@ -154,14 +202,14 @@ void intersect_pair(FaceData& f, FaceData& g, double tol) {
           if (const auto* s = boost::get<KE::Segment_3>(&*x)) found.push_back({vec(s->source()), vec(s->target())});
         }
         const Vec3 d = (from.poly[(c + 1) % from.poly.size()] - from.poly[c]).normalized();
-        for (const auto& seg : join_collinear(found, d, tol)) add_cut(to, seg[0], seg[1], tol);
+        for (const auto& seg : join_collinear(found, d, tol)) add_cut(to, cuts, seg[0], seg[1], tol);
       }
     };
-    clip_edges(f, g);
-    clip_edges(g, f);
+    clip_edges(f, g, cf);
+    clip_edges(g, f, cg);
     return;
   }
-  if (parallel) return;
+  if (parallel || separated_by_plane(f, g) || separated_by_plane(g, f)) return;
   std::vector<std::array<Vec3, 2>> found;
   for (const auto& tf : f.tris)
     for (const auto& tg : g.tris) {
@@ -171,8 +219,8 @@ void intersect_pair(FaceData& f, FaceData& g, double tol) {
       if (const auto* s = boost::get<KE::Segment_3>(&*x)) found.push_back({vec(s->source()), vec(s->target())});
     }
   for (const auto& seg : join_collinear(found, f.n.cross(g.n).normalized(), tol)) {
-    add_cut(f, seg[0], seg[1], tol);
-    add_cut(g, seg[0], seg[1], tol);
+    add_cut(f, cf, seg[0], seg[1], tol);
+    add_cut(g, cg, seg[0], seg[1], tol);
   }
 }
 
@@ -436,6 +484,13 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
     f.n = newell_normal(f.poly).normalized();
     f.u = (std::abs(f.n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(f.n).normalized();
     f.v = f.n.cross(f.u);
+    double extent = 0;
+    for (const Vec3& q : f.poly) {
+      f.thickness = std::max(f.thickness, std::abs(f.n.dot(q - f.poly[0])));
+      extent = std::max(extent, (q - f.poly[0]).lpNorm<Eigen::Infinity>());
+    }
+    // Rounding of the distances (of coordinates up to |poly[0]| + extent): generous, 1e-12 relative.
+    f.thickness += 1e-12 * (f.poly[0].lpNorm<Eigen::Infinity>() + extent) + 1e-300;
     for (const auto& t : triangulate_polygon(f.poly, f.n)) {
       KE::Triangle_3 tri(ke(f.poly[t[0]]), ke(f.poly[t[1]]), ke(f.poly[t[2]]));
       if (!tri.is_degenerate()) f.tris.push_back(tri);
@@ -459,12 +514,14 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
       n += std::find(s.faces[b].vertices.begin(), s.faces[b].vertices.end(), v) != s.faces[b].vertices.end();
     return n;
   };
-  for (auto [a, b] : pairs) {
-    if (origin_of(s, a) == origin_of(s, b)) continue;
+  // Per pair: skipped, or its cuts. Pairs in parallel, in blocks (the cuts of a block are kept until applied);
+  // applied in pair order, so the result does not depend on the thread count.
+  auto skip_pair = [&](int a, int b) {
+    if (origin_of(s, a) == origin_of(s, b)) return true;
     // Neighbours across an edge that are not coplanar meet only along it (a fold would be coplanar).
     // Coplanar neighbours across an edge, on either side of it, do not overlap either.
     if (shared_corners(a, b) >= 2) {
-      if (fd[a].n.cross(fd[b].n).norm() > 1e-9) continue;
+      if (fd[a].n.cross(fd[b].n).norm() > 1e-9) return true;
       const auto& fa = s.faces[a].vertices;
       int e0 = -1, e1 = -1;
       for (size_t c = 0; c < fa.size() && e1 < 0; ++c) {
@@ -479,15 +536,39 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
         Vec3 ca = Vec3::Zero(), cb = Vec3::Zero();
         for (const Vec3& q : fd[a].poly) ca += q / double(fd[a].poly.size());
         for (const Vec3& q : fd[b].poly) cb += q / double(fd[b].poly.size());
-        if (side.dot(ca - p0) * side.dot(cb - p0) < 0) continue;
+        if (side.dot(ca - p0) * side.dot(cb - p0) < 0) return true;
       }
     }
-    const size_t ca = fd[a].cuts.size(), cb = fd[b].cuts.size();
-    intersect_pair(fd[a], fd[b], tol);
-    // Coincident or touching faces are candidates for hiding even when nothing splits them.
-    const bool parallel = fd[a].n.cross(fd[b].n).norm() <= 1e-9;
-    const bool coplanar = parallel && std::abs(fd[a].n.dot(fd[b].poly[0] - fd[a].poly[0])) <= tol;
-    if (fd[a].cuts.size() > ca || fd[b].cuts.size() > cb || coplanar) in_contact[a] = in_contact[b] = 1;
+    return false;
+  };
+  struct PairCuts {
+    bool skipped = true;
+    Cuts a, b;
+  };
+  constexpr size_t kBlock = 1 << 14;
+  std::vector<PairCuts> block;
+  for (size_t first = 0; first < pairs.size(); first += kBlock) {
+    const size_t last = std::min(pairs.size(), first + kBlock);
+    block.assign(last - first, PairCuts{});
+    tbb::parallel_for(tbb::blocked_range<size_t>(first, last, 64), [&](const tbb::blocked_range<size_t>& range) {
+      for (size_t i = range.begin(); i < range.end(); ++i) {
+        const auto [a, b] = pairs[i];
+        PairCuts& r = block[i - first];
+        r.skipped = skip_pair(a, b);
+        if (!r.skipped) intersect_pair(fd[a], fd[b], tol, r.a, r.b);
+      }
+    });
+    for (size_t i = first; i < last; ++i) {
+      const auto [a, b] = pairs[i];
+      PairCuts& r = block[i - first];
+      if (r.skipped) continue;
+      fd[a].cuts.insert(fd[a].cuts.end(), r.a.begin(), r.a.end());
+      fd[b].cuts.insert(fd[b].cuts.end(), r.b.begin(), r.b.end());
+      // Coincident or touching faces are candidates for hiding even when nothing splits them.
+      const bool parallel = fd[a].n.cross(fd[b].n).norm() <= 1e-9;
+      const bool coplanar = parallel && std::abs(fd[a].n.dot(fd[b].poly[0] - fd[a].poly[0])) <= tol;
+      if (!r.a.empty() || !r.b.empty() || coplanar) in_contact[a] = in_contact[b] = 1;
+    }
   }
 
   PointIndex index(s, tol);

@@ -1,5 +1,5 @@
 #pragma once
-// Ray casting against the faces of a soup, in double precision (CGAL AABB tree, internal to mesh/):
+// Ray casting against the faces of a soup, in double precision (a BVH and a watertight triangle test, internal to mesh/):
 // what mesh::prepare uses to see which side of a surface the scene sees, and whether a fragment is
 // hidden. Embree stays in formfactor/.
 #include <functional>

@@ -23,6 +23,8 @@ struct Report {
   std::vector<std::string> warnings;   // one human-readable line each
   double worst_nonplanarity = 0;       // metres, largest corner distance from a face's plane
   int worst_nonplanar_face = -1;       // input face index of that face
+  // Wall time of each preparation stage (weld, orient, imprint, ...), seconds, in the order run.
+  std::vector<std::pair<std::string, double>> seconds;
   void warn(const std::string& key, long count, const std::string& message);
 };
 
