@@ -663,7 +663,8 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
         bool back = false;
         double first_t = -1;
         for (int tries = 0; tries < 8; ++tries) {
-          const auto h = rays.first(o, d, skipped);
+          // Past the first face met, only faces at its distance (within tol) matter.
+          const auto h = rays.first(o, d, skipped, first_t < 0 ? std::numeric_limits<double>::infinity() : first_t + tol);
           if (h.face < 0) break;
           skip.push_back(h.face);
           if (h.t <= tol && coplanar(k, h.face)) continue;  // touches the start only

@@ -187,8 +187,8 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
             // A face of its own surface at the same distance (a block's bottom on the floor) is hit first:
             // the ray ends inside its own surface, it is no evidence.
             const int c = C.comp[k];
-            const auto own = rays.first(o, dir, [&](int f) { return f == k || C.comp[f] != c; });
-            if (own.face >= 0 && own.t <= h.t * (1 + 1e-9) + 1e-12) h = own;
+            const auto own = rays.first(o, dir, [&](int f) { return f == k || C.comp[f] != c; }, h.t * (1 + 1e-9) + 1e-12);
+            if (own.face >= 0) h = own;
           }
           out.cast.push_back({k, h.face, side == 0, h.front});
           if (several && C.comp[h.face] != C.comp[k]) ++out.evidence[side];

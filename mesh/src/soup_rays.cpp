@@ -175,7 +175,7 @@ SoupRays::SoupRays(const PolygonSoup& s, const std::vector<char>& include) : imp
 
 SoupRays::~SoupRays() = default;
 
-SoupRays::Hit SoupRays::first(const Vec3& o, const Vec3& d, const std::function<bool(int)>& skip) const {
+SoupRays::Hit SoupRays::first(const Vec3& o, const Vec3& d, const std::function<bool(int)>& skip, double t_max) const {
   Hit h;
   const Impl& m = *impl_;
   if (m.nodes.empty()) return h;
@@ -189,7 +189,7 @@ SoupRays::Hit SoupRays::first(const Vec3& o, const Vec3& d, const std::function<
   const bool neg[3] = {inv.x() < 0, inv.y() < 0, inv.z() < 0};
   constexpr double kGrow = 1 + 8 * std::numeric_limits<double>::epsilon();
 
-  double best_t = std::numeric_limits<double>::infinity();
+  double best_t = t_max;
   int best = -1;
   auto test = [&](int i) {
     const auto& t = m.tris[i];
@@ -208,7 +208,7 @@ SoupRays::Hit SoupRays::first(const Vec3& o, const Vec3& d, const std::function<
     const double det = u + v + w;
     if (det == 0) return;  // the ray lies in the triangle's plane
     const double tt = (u * sz * a[kz] + v * sz * b[kz] + w * sz * c[kz]) / det;
-    if (!(tt >= 0) || tt > best_t || (tt == best_t && i > best)) return;
+    if (!(tt >= 0) || tt > best_t || (tt == best_t && best >= 0 && i > best)) return;
     if (skip(m.face[i])) return;
     best_t = tt;
     best = i;

@@ -3,6 +3,7 @@
 // what mesh::prepare uses to see which side of a surface the scene sees, and whether a fragment is
 // hidden. Embree stays in formfactor/.
 #include <functional>
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
@@ -24,8 +25,10 @@ class SoupRays {
     double t = 0;     // distance along the unit direction (m)
     bool front = false;  // the ray arrives at the face's front side (direction . normal < 0)
   };
-  // First hit of the ray o + t d (|d| = 1, t > 0) on a face for which skip(face) is false.
-  Hit first(const Vec3& o, const Vec3& d, const std::function<bool(int)>& skip) const;
+  // First hit of the ray o + t d (|d| = 1, 0 <= t <= t_max) on a face for which skip(face) is false. A finite
+  // t_max ends the ray there: a query skipping most faces then does not trace to the far end of the scene.
+  Hit first(const Vec3& o, const Vec3& d, const std::function<bool(int)>& skip,
+            double t_max = std::numeric_limits<double>::infinity()) const;
 
   // Unit Newell normal of face k (right-hand rule), zero if not included.
   const Vec3& normal(int k) const { return normal_[k]; }
