@@ -251,6 +251,11 @@ struct Local {
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   detail::SampleBuffers sb;
   std::vector<Vec3> pa, pb;
+  // A cluster link's rays, traced a batch at a time: ends, patches, weights, results.
+  std::vector<Vec3> ray_from, ray_to;
+  std::vector<int> ray_pa, ray_pb;
+  std::vector<double> ray_w;  // per ray drawn: its weight, or -1 where the points do not face each other
+  std::vector<std::uint8_t> ray_hidden;
   int hint = -1;
   detail::ExactScratchPtr exact = detail::make_exact_scratch();
   std::vector<int> cand, merged_ids;
@@ -531,29 +536,57 @@ class Refiner {
     double num = 0, den = 0;
     int hidden = 0, seen = 0, cast = 0;
     // R0 rays; while every ray is blocked and more could certify the blocking (max_rays), continue to max_rays.
-    for (int k = 0; k < std::max(R0, max_rays); ++k) {
-      if (k >= R0 && seen > 0) break;
-      ++cast;
-      const std::uint64_t sk = detail::mix(seed + std::uint64_t(k));
-      auto pick = [&](const HNode& nd, std::uint64_t h) {
-        const double u = cum_[nd.begin] + (double(h >> 11) * 0x1.0p-53) * (cum_[nd.end] - cum_[nd.begin]);
-        int k2 = int(std::upper_bound(cum_.begin() + nd.begin + 1, cum_.begin() + nd.end + 1, u) - cum_.begin()) - 1;
-        return d_.perm[std::clamp(k2, nd.begin, nd.end - 1)];
-      };
-      const int pa = pick(A, sk), pb = pick(B, detail::mix(sk ^ 0x5555));
-      detail::sample_patch(g_, d_.P, pa, 1, 1, detail::mix(sk + 1), loc.pa);
-      detail::sample_patch(g_, d_.P, pb, 1, 1, detail::mix(sk + 2), loc.pb);
-      const Vec3 x = loc.pa[0], y = loc.pb[0], dv = y - x;
-      const double cx = g_.normal[pa].dot(dv), cy = -g_.normal[pb].dot(dv);
-      if (!(cx > 0 && cy > 0)) continue;
-      const double r2 = dv.squaredNorm(), wgt = cx * cy / (r2 * r2);
-      const bool h = caster_->occluded(x, y, pa, pb);
-      ++loc.rays;
-      den += wgt;
-      if (h) ++hidden;
-      else {
-        num += wgt;
-        ++seen;
+    // Rays are drawn and traced a batch at a time (R0 first, then up to kBatch) and read in order, as one ray at a
+    // time would: the same result; the rays traced past the one that ends the loop are counted in the statistics.
+    constexpr int kBatch = 32;
+    const int total = std::max(R0, max_rays);
+    auto pick = [&](const HNode& nd, std::uint64_t h) {
+      const double u = cum_[nd.begin] + (double(h >> 11) * 0x1.0p-53) * (cum_[nd.end] - cum_[nd.begin]);
+      int k2 = int(std::upper_bound(cum_.begin() + nd.begin + 1, cum_.begin() + nd.end + 1, u) - cum_.begin()) - 1;
+      return d_.perm[std::clamp(k2, nd.begin, nd.end - 1)];
+    };
+    bool done = false;
+    for (int k0 = 0; k0 < total && !done; k0 += (k0 == 0 ? R0 : kBatch)) {
+      if (k0 >= R0 && seen > 0) break;  // as the check below, before drawing a batch that would not be read
+      const int k1 = std::min(total, k0 + (k0 == 0 ? R0 : kBatch));
+      loc.ray_from.clear();
+      loc.ray_to.clear();
+      loc.ray_pa.clear();
+      loc.ray_pb.clear();
+      loc.ray_w.assign(size_t(k1 - k0), -1.0);
+      for (int k = k0; k < k1; ++k) {
+        const std::uint64_t sk = detail::mix(seed + std::uint64_t(k));
+        const int pa = pick(A, sk), pb = pick(B, detail::mix(sk ^ 0x5555));
+        detail::sample_patch(g_, d_.P, pa, 1, 1, detail::mix(sk + 1), loc.pa);
+        detail::sample_patch(g_, d_.P, pb, 1, 1, detail::mix(sk + 2), loc.pb);
+        const Vec3 x = loc.pa[0], y = loc.pb[0], dv = y - x;
+        const double cx = g_.normal[pa].dot(dv), cy = -g_.normal[pb].dot(dv);
+        if (!(cx > 0 && cy > 0)) continue;
+        const double r2 = dv.squaredNorm();
+        loc.ray_w[size_t(k - k0)] = cx * cy / (r2 * r2);
+        loc.ray_from.push_back(x);
+        loc.ray_to.push_back(y);
+        loc.ray_pa.push_back(pa);
+        loc.ray_pb.push_back(pb);
+      }
+      loc.ray_hidden.resize(loc.ray_from.size());
+      caster_->occluded(loc.ray_from, loc.ray_to, loc.ray_pa, loc.ray_pb, loc.ray_hidden);
+      loc.rays += static_cast<long long>(loc.ray_from.size());
+      size_t traced = 0;
+      for (int k = k0; k < k1; ++k) {
+        if (k >= R0 && seen > 0) {
+          done = true;
+          break;
+        }
+        ++cast;
+        const double wgt = loc.ray_w[size_t(k - k0)];
+        if (wgt < 0) continue;
+        den += wgt;
+        if (loc.ray_hidden[traced++]) ++hidden;
+        else {
+          num += wgt;
+          ++seen;
+        }
       }
     }
     VisResult r;

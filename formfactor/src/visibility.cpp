@@ -19,6 +19,12 @@ bool Visibility::occluded(const Vec3& from, const Vec3& to, int ignore_a, int ig
   return hidden != 0;
 }
 
+void Visibility::occluded(std::span<const Vec3> from, std::span<const Vec3> to, std::span<const int> ignore_a,
+                          std::span<const int> ignore_b, std::span<std::uint8_t> hidden) const {
+  for (size_t k = 0; k < from.size(); ++k)
+    occluded(from.subspan(k, 1), to.subspan(k, 1), ignore_a[k], ignore_b[k], hidden.subspan(k, 1));
+}
+
 namespace {
 
 // Embree's intersect context extended with the two patches to ignore; the context filter sees every
@@ -56,6 +62,9 @@ struct IgnoreContext {
   const int* tri_patch;
   const Planes* planes;
   int a, b;
+  // Per ray (indexed by the ray's id) when not null: the pair each ray ignores, instead of (a, b).
+  const int* ray_a = nullptr;
+  const int* ray_b = nullptr;
 };
 
 void ignore_filter(const RTCFilterFunctionNArguments* args) {
@@ -63,7 +72,13 @@ void ignore_filter(const RTCFilterFunctionNArguments* args) {
   for (unsigned k = 0; k < args->N; ++k) {
     if (args->valid[k] == 0) continue;
     const int patch = c->tri_patch[RTCHitN_primID(args->hit, args->N, k)];
-    if (c->planes->ignored(patch, c->a, c->b)) args->valid[k] = 0;
+    int a = c->a, b = c->b;
+    if (c->ray_a) {
+      const unsigned id = RTCRayN_id(args->ray, args->N, k);
+      a = c->ray_a[id];
+      b = c->ray_b[id];
+    }
+    if (c->planes->ignored(patch, a, b)) args->valid[k] = 0;
   }
 }
 
@@ -97,10 +112,22 @@ class EmbreeVisibility final : public Visibility {
 
   void occluded(std::span<const Vec3> from, std::span<const Vec3> to, int ignore_a, int ignore_b,
                 std::span<std::uint8_t> hidden) const override {
+    trace(from, to, ignore_a, ignore_b, nullptr, nullptr, hidden);
+  }
+  void occluded(std::span<const Vec3> from, std::span<const Vec3> to, std::span<const int> ignore_a,
+                std::span<const int> ignore_b, std::span<std::uint8_t> hidden) const override {
+    trace(from, to, -1, -1, ignore_a.data(), ignore_b.data(), hidden);
+  }
+
+ private:
+  // Segments in chunks of 64, one rtcOccluded1M call each (a stream: Embree packs coherent rays); the ray's id is
+  // its index in the call, which the filter uses to find a per-ray ignored pair.
+  void trace(std::span<const Vec3> from, std::span<const Vec3> to, int ignore_a, int ignore_b, const int* ray_a,
+             const int* ray_b, std::span<std::uint8_t> hidden) const {
     IgnoreContext c;
     rtcInitIntersectContext(&c.ctx);
     c.ctx.filter = &ignore_filter;
-    c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one call = rays between two patches
+    c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one call = rays between two patches or two clusters
     c.tri_patch = tri_patch_.data();
     c.planes = &planes_;
     c.a = ignore_a;
@@ -109,6 +136,10 @@ class EmbreeVisibility final : public Visibility {
     RTCRay rays[kChunk];
     for (size_t b = 0; b < from.size(); b += kChunk) {
       const size_t n = std::min(kChunk, from.size() - b);
+      if (ray_a) {
+        c.ray_a = ray_a + b;
+        c.ray_b = ray_b + b;
+      }
       for (size_t k = 0; k < n; ++k) {
         const Vec3 o = from[b + k] - centre_;
         const Vec3 d = to[b + k] - from[b + k];
@@ -131,7 +162,6 @@ class EmbreeVisibility final : public Visibility {
     }
   }
 
- private:
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
   Vec3 centre_ = Vec3::Zero();  // subtracted from every coordinate before it becomes a float
@@ -141,6 +171,7 @@ class EmbreeVisibility final : public Visibility {
 
 class BruteForceVisibility final : public Visibility {
  public:
+  using Visibility::occluded;  // the per-segment pairs: the base's loop over this one
   explicit BruteForceVisibility(const mesh::PatchGeometry& g) : g_(g), planes_(g, Vec3::Zero()) {
     for (int p = 0; p < g.size(); ++p)
       for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) patch_.push_back(p);

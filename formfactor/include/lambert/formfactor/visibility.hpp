@@ -20,6 +20,11 @@ class Visibility {
   virtual void occluded(std::span<const Vec3> from, std::span<const Vec3> to, int ignore_a, int ignore_b,
                         std::span<std::uint8_t> hidden) const = 0;
   bool occluded(const Vec3& from, const Vec3& to, int ignore_a, int ignore_b) const;
+  // As above with a pair of ignored patches per segment (ignore_a[k], ignore_b[k]): rays between random patches
+  // of two clusters, traced in one call. The default calls the one-pair version per segment.
+  // Precondition: all five spans have the same size.
+  virtual void occluded(std::span<const Vec3> from, std::span<const Vec3> to, std::span<const int> ignore_a,
+                        std::span<const int> ignore_b, std::span<std::uint8_t> hidden) const;
 };
 
 // Embree 3 BVH over the triangles of the given patches (all patches if `occluders` is empty). Only patches
