@@ -252,6 +252,60 @@ TEST(FormFactorAssembly, EmbreeCasterMatchesBruteForceOnSegments) {
   EXPECT_GT(hidden, 200);
 }
 
+// Segments with a pair of ignored patches each, traced in one call (the hierarchy's cluster rays): the same answers
+// as the brute force asked one segment at a time. The segments run between points of two patches (their ends on
+// the ignored patches, as the hierarchy casts them); a third of them end short of the target and ignore the patch
+// that would block them instead: the per-segment pair must reach the filter of the ray it belongs to (with one pair
+// for the whole call, the answers differ).
+TEST(FormFactorAssembly, EmbreeBatchWithIgnoredPairPerSegmentMatchesBruteForce) {
+  const auto g = geometry(mixed_scene());
+  const auto e = make_embree_visibility(g), b = make_brute_force_visibility(g);
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> P(0, g.size() - 1);
+  std::uniform_real_distribution<double> U(0.05, 0.95);
+  auto point_on = [&](int p) {
+    const auto poly = g.polygon(p);
+    const double a = U(rng), c = U(rng) * (1 - a);
+    return Vec3(poly[0] + a * (poly[1] - poly[0]) + c * (poly[2] - poly[0]));
+  };
+  std::vector<Vec3> from, to;
+  std::vector<int> ia, ib;
+  for (int k = 0; k < 3000; ++k) {
+    const int pa = P(rng), pb = P(rng);
+    if (pa == pb) continue;
+    const Vec3 x = point_on(pa);
+    Vec3 y = point_on(pb);
+    int other = pb;
+    if (k % 3 == 0) {
+      // Ends short of the target (on no patch), ignoring what blocks it (and the patches in that one's plane).
+      y = x + 0.98 * (y - x);
+      other = -1;
+      if (b->occluded(x, y, pa, -1))
+        for (int q = 0; q < g.size() && other < 0; ++q)
+          if (q != pa && !b->occluded(x, y, pa, q)) other = q;
+    }
+    from.push_back(x);
+    to.push_back(y);
+    ia.push_back(pa);
+    ib.push_back(other);
+  }
+  std::vector<std::uint8_t> he(from.size()), shared(from.size());
+  e->occluded(from, to, ia, ib, he);
+  e->occluded(from, to, ia[0], ib[0], shared);
+  int agree = 0, hidden = 0, shared_differs = 0;
+  for (size_t k = 0; k < from.size(); ++k) {
+    const bool hb = b->occluded(from[k], to[k], ia[k], ib[k]);
+    agree += (he[k] != 0) == hb;
+    hidden += hb;
+    shared_differs += (shared[k] != 0) != hb;
+  }
+  // Float (Embree) against double: only segments within ~1e-7 of an edge may differ.
+  EXPECT_GE(agree, int(from.size()) - 3) << "of " << from.size();
+  EXPECT_GT(hidden, 200);
+  EXPECT_LT(hidden, int(from.size()) - 200);
+  EXPECT_GT(shared_differs, 100) << "the test cannot tell per-segment pairs from one pair for all";
+}
+
 TEST(FormFactorAssembly, OversizedMatrixFailsClearly) {
   const auto g = geometry(shapes::box(Vec3::Zero(), Vec3::Ones(), 4, true));  // 96 patches: 73,728 bytes
   Options o;
