@@ -15,6 +15,8 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "prepare_internal.hpp"
 
@@ -116,38 +118,47 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
     return distance_to_boundary(p, polys[f]) > tol && distance_to_boundary(p, polys[g]) > tol;
   };
   std::vector<std::pair<int, int>> found;  // input face ids
-  for (auto [f, g] : candidates) {
-    const int of = origin_of(s, f), og = origin_of(s, g);
-    if (of == og) continue;
-    bool hit = false;
-    for (size_t i = 0; i < tris[f].size() && !hit; ++i) {
-      const auto& tf = tris[f][i];
-      for (size_t j = 0; j < tris[g].size() && !hit; ++j) {
-        const auto& tg = tris[g][j];
-        if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) ||
-            !may_touch_beyond_shared(tri_vertices[f][i], tri_vertices[g][j], tf, tg))
-          continue;
-        // Where exactly (exact constructions, then rounded): is any of it inside both faces?
-        const auto x = CGAL::intersection(exact(tf), exact(tg));
-        if (!x) continue;
-        Vec3 p;
-        if (const auto* seg = boost::get<KE::Segment_3>(&*x)) {
-          p = 0.5 * (to_vec(seg->source()) + to_vec(seg->target()));
-        } else if (normal[f].dot(normal[g]) < 0) {
-          continue;  // coincident back to back: one-sided surfaces that do not see each other
-        } else if (const auto* tri = boost::get<KE::Triangle_3>(&*x)) {
-          p = (to_vec(tri->vertex(0)) + to_vec(tri->vertex(1)) + to_vec(tri->vertex(2))) / 3;
-        } else if (const auto* pts = boost::get<std::vector<KE::Point_3>>(&*x)) {
-          p = Vec3::Zero();
-          for (const auto& q : *pts) p += to_vec(q);
-          p /= double(pts->size());
-        } else {
-          continue;  // a single point: always on an edge of one of them
+  // Candidates in parallel, each deciding only its own flag; read in order (the same list for any thread count).
+  std::vector<char> crosses(candidates.size(), 0);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 256), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t c = range.begin(); c < range.end(); ++c) {
+      const auto [f, g] = candidates[c];
+      if (origin_of(s, f) == origin_of(s, g)) continue;
+      bool hit = false;
+      for (size_t i = 0; i < tris[f].size() && !hit; ++i) {
+        const auto& tf = tris[f][i];
+        for (size_t j = 0; j < tris[g].size() && !hit; ++j) {
+          const auto& tg = tris[g][j];
+          if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) ||
+              !may_touch_beyond_shared(tri_vertices[f][i], tri_vertices[g][j], tf, tg))
+            continue;
+          // Where exactly (exact constructions, then rounded): is any of it inside both faces?
+          const auto x = CGAL::intersection(exact(tf), exact(tg));
+          if (!x) continue;
+          Vec3 p;
+          if (const auto* seg = boost::get<KE::Segment_3>(&*x)) {
+            p = 0.5 * (to_vec(seg->source()) + to_vec(seg->target()));
+          } else if (normal[f].dot(normal[g]) < 0) {
+            continue;  // coincident back to back: one-sided surfaces that do not see each other
+          } else if (const auto* tri = boost::get<KE::Triangle_3>(&*x)) {
+            p = (to_vec(tri->vertex(0)) + to_vec(tri->vertex(1)) + to_vec(tri->vertex(2))) / 3;
+          } else if (const auto* pts = boost::get<std::vector<KE::Point_3>>(&*x)) {
+            p = Vec3::Zero();
+            for (const auto& q : *pts) p += to_vec(q);
+            p /= double(pts->size());
+          } else {
+            continue;  // a single point: always on an edge of one of them
+          }
+          hit = interior_to_both(p, f, g);
         }
-        hit = interior_to_both(p, f, g);
       }
+      crosses[c] = hit;
     }
-    if (hit) found.emplace_back(std::min(of, og), std::max(of, og));
+  });
+  for (size_t c = 0; c < candidates.size(); ++c) {
+    if (!crosses[c]) continue;
+    const int of = origin_of(s, candidates[c].first), og = origin_of(s, candidates[c].second);
+    found.emplace_back(std::min(of, og), std::max(of, og));
   }
   std::sort(found.begin(), found.end());
   found.erase(std::unique(found.begin(), found.end()), found.end());
