@@ -2,6 +2,7 @@
 // mesh::Scene: validated patches (OpenMesh faces) with materials, ready for form factors.
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
