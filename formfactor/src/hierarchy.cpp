@@ -189,16 +189,19 @@ struct FarRecord {
   float lerr_ab, lerr_ba;  // the same times Lmax of the source, relative to L_ref
 };
 struct LeafRecord {
-  int s, t;      // the pair's source (the smaller area) and target
-  double Fst;    // F_ts = F_st A_s / A_t is formed when the record is stored
-  float es, ss;  // admitted kernel error and visibility sigma of F_st (those of F_ts scale with A_s / A_t)
+  int s, t;    // the pair's source (the smaller area) and target
+  double Fst;  // stored once: apply() forms F_ts = F_st A_s / A_t
 };
-// Bytes a leaf link holds at the build's peak: its record and its two stored entries (index + factor).
-constexpr std::size_t kLinkPeakBytes = sizeof(LeafRecord) + 2 * (sizeof(int) + sizeof(double));
+// A leaf link's records go into buckets of kBucketRows consecutive sources (per thread), so that the build can
+// sort and store them a bucket at a time, freeing each bucket's records as it goes: the records and the stored
+// entries (index + factor, 12 bytes) are not all in memory at once.
+constexpr int kBucketLog = 12, kBucketRows = 1 << kBucketLog;
+// Bytes a link holds at the build's peak: its record, and some slack for partly filled blocks.
+constexpr std::size_t kLinkPeakBytes = sizeof(LeafRecord) + 4;
 
-// Append-only storage in fixed blocks: growing it copies nothing and leaves no doubling slack (the link records
-// of a 300k-patch building are gigabytes).
-template <class T>
+// Append-only storage in fixed blocks of 2^BlockLog: growing it copies nothing and leaves no doubling slack (the
+// link records of a 300k-patch building are gigabytes).
+template <class T, int BlockLog = 15>
 class Chunked {
  public:
   void push_back(const T& v) {
@@ -218,7 +221,7 @@ class Chunked {
   }
 
  private:
-  static constexpr std::size_t kBlock = std::size_t(1) << 15;
+  static constexpr std::size_t kBlock = std::size_t(1) << BlockLog;
   std::vector<std::unique_ptr<T[]>> blocks_;
   std::size_t size_ = 0;
 };
@@ -245,7 +248,8 @@ void sort_rows(const std::vector<std::int64_t>& off, std::vector<int>& src, std:
 
 struct Local {
   Chunked<FarRecord> far;  // links that carry light (blocked links keep only their admitted error, below)
-  Chunked<LeafRecord> leaf;
+  std::vector<Chunked<LeafRecord, 12>> leaf;  // per bucket of sources (kBucketRows), created on first use
+  std::vector<double> leaf_err, leaf_sig2;    // per patch: admitted error and visibility variance of its leaf links
   std::vector<double> blocked_err, blocked_lerr;  // per node: admitted error of its blocked links (or empty)
   long long culled = 0, cell_culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
@@ -650,7 +654,19 @@ class Refiner {
       }
     }
     check_memory();
-    if (Fst > 0) loc.leaf.push_back(LeafRecord{s, t, Fst, float(e.error + exact_error), float(sigma)});
+    if (!(Fst > 0)) return;
+    if (loc.leaf.empty()) {
+      loc.leaf.resize(size_t((d_.n + kBucketRows - 1) >> kBucketLog));
+      loc.leaf_err.assign(size_t(d_.n), 0.0);
+      loc.leaf_sig2.assign(size_t(d_.n), 0.0);
+    }
+    loc.leaf[size_t(s >> kBucketLog)].push_back(LeafRecord{s, t, Fst});
+    // F_ts's error and sigma are F_st's times A_s / A_t.
+    const double es = e.error + exact_error, ratio = g_.area[s] / g_.area[t];
+    loc.leaf_err[size_t(s)] += es;
+    loc.leaf_err[size_t(t)] += es * ratio;
+    loc.leaf_sig2[size_t(s)] += sigma * sigma;
+    loc.leaf_sig2[size_t(t)] += sigma * sigma * ratio * ratio;
   }
 
   const mesh::PatchGeometry& g_;
@@ -686,8 +702,10 @@ class Refiner {
 std::size_t HierarchicalOperator::Impl::bytes() const {
   return nodes.capacity() * sizeof(detail::HNode) + perm.capacity() * 4 + leaf_of.capacity() * 4 +
          far_off.capacity() * 8 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
-         leaf_src.capacity() * 4 + leaf_F.capacity() * 8 + row_sums.capacity() * 8 +
+         std::size_t(leaf_count) * 12 + leaf_blocks.capacity() * 4 + row_sums.capacity() * 8 +
          nodes.size() * (detail::kMomentRecord + 30) * 8 +  // one set of apply()'s work arrays
+         (leaf_blocks.empty() ? 0 : (leaf_blocks.size() - 1) * std::size_t(n) * 8) +  // and its transposed scatter
+         (tr_off.capacity() + tr_entry.capacity()) * 8 + tr_src.capacity() * 4 +
          std::size_t(n) * (sizeof(Vec3) * 2 + 8 * 5 + 48 + 1) +
          [&] {
            std::size_t b = 0;
@@ -706,6 +724,76 @@ std::size_t estimate_hierarchy_bytes(std::size_t n, double tolerance) {
   const double mb = 300.0 * std::pow(double(n) / 1e4, 0.62) * std::pow(1e-3 / std::clamp(tolerance, 1e-9, 0.5), 0.3);
   return std::size_t(mb * 1048576.0);
 }
+
+namespace {
+
+// The leaf records into the stored CSR over sources, one bucket of sources at a time (in parallel): gathered from
+// every thread, sorted by (s, t) (unique pairs: the same order for any thread count), stored, and freed. The
+// stored arrays are allocated without zeroing, so their pages become resident as the buckets fill them while the
+// buckets' records are freed: the peak is about one record per link, not a record plus its entries. Each
+// thread's per-patch admitted errors and visibility variances are summed into err (per node) and the stats.
+void store_leaf_links(HierarchicalOperator::Impl& d, Refiner& rf, HierarchyStats& st, std::vector<double>& err) {
+  const int n = d.n;
+  std::vector<Local*> locals;
+  for (Local& l : rf.locals) locals.push_back(&l);
+  const int buckets = (n + kBucketRows - 1) >> kBucketLog;
+  std::vector<std::int64_t> bucket_off(size_t(buckets) + 1, 0);
+  for (const Local* l : locals)
+    for (size_t b = 0; b < l->leaf.size(); ++b) bucket_off[b + 1] += std::int64_t(l->leaf[b].size());
+  for (int b = 0; b < buckets; ++b) bucket_off[size_t(b) + 1] += bucket_off[size_t(b)];
+  d.leaf_count = bucket_off[size_t(buckets)];
+  st.leaf_links = d.leaf_count;
+  d.leaf_src.reset(new int[size_t(d.leaf_count)]);
+  d.leaf_F.reset(new double[size_t(d.leaf_count)]);
+  d.leaf_off.assign(size_t(n) + 1, 0);
+  tbb::parallel_for(tbb::blocked_range<int>(0, buckets, 1), [&](const tbb::blocked_range<int>& r) {
+    std::vector<LeafRecord> recs;
+    for (int b = r.begin(); b < r.end(); ++b) {
+      recs.clear();
+      recs.reserve(size_t(bucket_off[size_t(b) + 1] - bucket_off[size_t(b)]));
+      for (Local* l : locals) {
+        if (size_t(b) >= l->leaf.size()) continue;
+        l->leaf[size_t(b)].for_each([&](const LeafRecord& x) { recs.push_back(x); });
+        l->leaf[size_t(b)].clear();
+      }
+      std::sort(recs.begin(), recs.end(), [](const LeafRecord& x, const LeafRecord& y) {
+        return x.s != y.s ? x.s < y.s : x.t < y.t;
+      });
+      std::int64_t e = bucket_off[size_t(b)];
+      for (const LeafRecord& x : recs) {
+        d.leaf_src[size_t(e)] = x.t;
+        d.leaf_F[size_t(e)] = x.Fst;
+        ++e;
+        ++d.leaf_off[size_t(x.s) + 1];  // rows of this bucket only
+      }
+    }
+  });
+  for (int k = 0; k < n; ++k) d.leaf_off[size_t(k) + 1] += d.leaf_off[size_t(k)];
+  // The transposed scatter's row blocks: about equal entries, at most kLeafBlocks, from the stored rows only.
+  constexpr int kLeafBlocks = 16;
+  constexpr std::int64_t kMinBlockEntries = std::int64_t(1) << 18;
+  const int blocks = int(std::clamp<std::int64_t>(d.leaf_count / kMinBlockEntries, 1, kLeafBlocks));
+  d.leaf_blocks.assign(1, 0);
+  for (int k = 1; k < blocks; ++k) {
+    const std::int64_t target = d.leaf_count * k / blocks;
+    const int row = int(std::lower_bound(d.leaf_off.begin(), d.leaf_off.end(), target) - d.leaf_off.begin());
+    if (row > d.leaf_blocks.back() && row < n) d.leaf_blocks.push_back(row);
+  }
+  d.leaf_blocks.push_back(n);
+  st.row_visibility_sigma.assign(size_t(n), 0.0);
+  for (Local* l : locals) {
+    if (l->leaf_err.empty()) continue;
+    for (int p = 0; p < n; ++p) {
+      err[size_t(d.leaf_of[p])] += l->leaf_err[size_t(p)];
+      st.row_visibility_sigma[size_t(p)] += l->leaf_sig2[size_t(p)];
+    }
+    std::vector<double>().swap(l->leaf_err);
+    std::vector<double>().swap(l->leaf_sig2);
+    std::vector<Chunked<LeafRecord, 12>>().swap(l->leaf);
+  }
+}
+
+}  // namespace
 
 HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const HierarchyOptions& o, HierarchyStats* stats) {
   const auto t0 = Clock::now();
@@ -856,34 +944,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       }
       sort_rows(d.far_off, d.far_src, d.far_vis);
     }
-    {
-      st.row_visibility_sigma.assign(n, 0.0);
-      d.leaf_off.assign(size_t(n) + 1, 0);
-      for (Local& l : rf.locals) {
-        st.leaf_links += (long long)l.leaf.size();
-        l.leaf.for_each([&](const LeafRecord& r) { ++d.leaf_off[size_t(r.s) + 1], ++d.leaf_off[size_t(r.t) + 1]; });
-      }
-      for (int k = 0; k < n; ++k) d.leaf_off[k + 1] += d.leaf_off[k];
-      d.leaf_src.resize(size_t(d.leaf_off[n]));
-      d.leaf_F.resize(size_t(d.leaf_off[n]));
-      std::vector<std::int64_t> at(d.leaf_off.begin(), d.leaf_off.end() - 1);
-      for (Local& l : rf.locals) {
-        l.leaf.for_each([&](const LeafRecord& r) {
-          const double ratio = g.area[r.s] / g.area[r.t], sst = r.ss * ratio;
-          st.row_visibility_sigma[r.s] += double(r.ss) * r.ss;
-          st.row_visibility_sigma[r.t] += sst * sst;
-          const std::int64_t es = at[size_t(r.s)]++, et = at[size_t(r.t)]++;
-          d.leaf_src[size_t(es)] = r.t;
-          d.leaf_F[size_t(es)] = r.Fst;
-          d.leaf_src[size_t(et)] = r.s;
-          d.leaf_F[size_t(et)] = r.Fst * ratio;
-          err[d.leaf_of[r.s]] += r.es;
-          err[d.leaf_of[r.t]] += r.es * ratio;
-        });
-        l.leaf.clear();
-      }
-      sort_rows(d.leaf_off, d.leaf_src, d.leaf_F);
-    }
+    store_leaf_links(d, rf, st, err);
     // Admitted error per patch: the sum over its ancestors' links (push down).
     for (int k = 1; k < nn; ++k) {
       err[k] += err[d.nodes[k].parent];
@@ -900,6 +961,9 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       st.radiance_error_max = std::max(st.radiance_error_max, lerr[d.leaf_of[p]]);
     }
     st.seconds_links = since(t_links);
+    // The outer rules of the near pairs are not needed by the products.
+    for (auto& v : d.P.rule_pts) std::vector<std::array<double, 4>>().swap(v);
+    for (auto& v : d.P.rule_off) std::vector<int>().swap(v);
     // Row sums: one product with the ones vector.
     d.row_sums.assign(n, 0.0);
     Eigen::VectorXd ones = Eigen::VectorXd::Ones(n), rs(n);

@@ -125,6 +125,7 @@ void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
 // first touching them on every product cost more than the arithmetic).
 struct HierarchicalOperator::Impl::Scratch {
   std::vector<double> rec, acc;
+  std::vector<double> z;  // per leaf block, n values: sum over its rows s of F_st A_s x_s, per target t
 };
 HierarchicalOperator::Impl::~Impl() = default;
 
@@ -147,9 +148,26 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
     S->rec.resize(size_t(nn) * kRec);
     S->acc.resize(size_t(nn) * kAcc);
     for (int k = 0; k < nn; ++k) std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rec.data() + size_t(k) * kRec);
+    S->z.resize((d.leaf_blocks.size() - 1) * size_t(n));
   }
   double* rec = S->rec.data();
   double* acc = S->acc.data();
+  // The leaf pairs' transposed entries F_ts = F_st A_s / A_t: each fixed block of source rows scatters into its
+  // own array (in parallel with the cluster part), summed below in block order.
+  const int blocks = int(d.leaf_blocks.size()) - 1;
+  auto scatter = [&] {
+    tbb::parallel_for(tbb::blocked_range<int>(0, blocks, 1), [&](const tbb::blocked_range<int>& r) {
+      for (int b = r.begin(); b < r.end(); ++b) {
+        double* z = S->z.data() + size_t(b) * size_t(n);
+        std::fill_n(z, n, 0.0);
+        for (int s = d.leaf_blocks[size_t(b)]; s < d.leaf_blocks[size_t(b) + 1]; ++s) {
+          const double v = g.area[s] * x[s];
+          if (v == 0) continue;
+          for (std::int64_t e = d.leaf_off[s]; e < d.leaf_off[s + 1]; ++e) z[d.leaf_src[e]] += d.leaf_F[e] * v;
+        }
+      }
+    });
+  };
   pull(d, x, rec, 0);
   // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
   // stored order (deterministic for any thread count).
@@ -163,7 +181,8 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
     }
   });
   push(d, acc, 0);
-  // Leaves: n_i . (g + H : M_i / 2) (the patch's own extent) plus the exact entries.
+  scatter();
+  // Leaves: n_i . (g + H : M_i / 2) (the patch's own extent) plus the exact entries, both directions.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
       const double* ri = acc + size_t(d.leaf_of[i]) * kAcc;
@@ -172,7 +191,9 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
       for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kMult[kl] * P.M[i][kl] * H.col(kl);
       double s = g.normal[i].dot(gi);
       for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) s += d.leaf_F[e] * x[d.leaf_src[e]];
-      y[i] = s;
+      double in = 0;
+      for (int b = 0; b < blocks; ++b) in += S->z[size_t(b) * size_t(n) + size_t(i)];
+      y[i] = s + in / g.area[i];
     }
   });
   std::lock_guard lock(d.scratch_mutex);
@@ -181,7 +202,34 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
 
 void HierarchicalOperator::for_each_in_row(int i, const std::function<void(int j, double F)>& f) const {
   const Impl& d = *d_;
-  for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) f(d.leaf_src[e], d.leaf_F[e]);
+  std::call_once(d.transpose_once, [&d] {
+    const int n = d.n;
+    d.tr_off.assign(size_t(n) + 1, 0);
+    for (std::int64_t e = 0; e < d.leaf_count; ++e) ++d.tr_off[size_t(d.leaf_src[e]) + 1];
+    for (int k = 0; k < n; ++k) d.tr_off[size_t(k) + 1] += d.tr_off[size_t(k)];
+    d.tr_entry.resize(size_t(d.leaf_count));
+    d.tr_src.resize(size_t(d.leaf_count));
+    std::vector<std::int64_t> at(d.tr_off.begin(), d.tr_off.end() - 1);
+    for (int s = 0; s < n; ++s)  // by source: each transposed row comes out sorted
+      for (std::int64_t e = d.leaf_off[s]; e < d.leaf_off[s + 1]; ++e) {
+        const std::int64_t k = at[size_t(d.leaf_src[e])]++;
+        d.tr_entry[size_t(k)] = e;
+        d.tr_src[size_t(k)] = s;
+      }
+  });
+  // The leaf entries of row i by column: its own (F_ij) merged with the transposed (F_ji A_j / A_i).
+  std::int64_t ea = d.leaf_off[i], ka = d.tr_off[i];
+  const std::int64_t ea1 = d.leaf_off[i + 1], ka1 = d.tr_off[i + 1];
+  while (ea < ea1 || ka < ka1) {
+    if (ka == ka1 || (ea < ea1 && d.leaf_src[ea] < d.tr_src[size_t(ka)])) {
+      f(d.leaf_src[ea], d.leaf_F[ea]);
+      ++ea;
+    } else {
+      const int j = d.tr_src[size_t(ka)];
+      f(j, d.leaf_F[d.tr_entry[size_t(ka)]] * d.g->area[j] / d.g->area[i]);
+      ++ka;
+    }
+  }
   const detail::PatchData& P = d.P;
   for (int k = d.leaf_of[i]; k >= 0; k = d.nodes[k].parent)
     for (std::int64_t e = d.far_off[k]; e < d.far_off[k + 1]; ++e) {

@@ -46,10 +46,20 @@ struct HierarchicalOperator::Impl {
   std::vector<std::int64_t> far_off;
   std::vector<int> far_src;
   std::vector<float> far_vis;
-  // Exact leaf entries per patch (CSR over patches, sorted by j): F_ij.
+  // Exact leaf entries, each patch pair once (CSR over the pair's source s, the patch of smaller area; sorted by
+  // target t): F_st. Row t's entry F_ts = F_st A_s / A_t is formed in apply() (scattered into leaf_blocks.size() - 1
+  // fixed row blocks' own arrays, summed in block order: the same result for any thread count). Arrays allocated
+  // without zeroing, so that their pages become resident only as the build fills them.
   std::vector<std::int64_t> leaf_off;
-  std::vector<int> leaf_src;
-  std::vector<double> leaf_F;
+  std::unique_ptr<int[]> leaf_src;
+  std::unique_ptr<double[]> leaf_F;
+  std::int64_t leaf_count = 0;
+  std::vector<int> leaf_blocks;  // row boundaries of the transposed scatter's blocks (first 0, last n)
+  // The transposed rows, for for_each_in_row only (built on its first call): per target t, the entries e of leaf
+  // arrays with leaf_src[e] == t, by source.
+  mutable std::once_flag transpose_once;
+  mutable std::vector<std::int64_t> tr_off, tr_entry;
+  mutable std::vector<int> tr_src;
   std::vector<double> row_sums;
   // Work arrays of apply(), reused between products (one set per concurrent caller; hierarchy_apply.cpp).
   struct Scratch;
