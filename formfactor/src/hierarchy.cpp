@@ -5,6 +5,8 @@
 #include <tbb/parallel_invoke.h>
 #include <tbb/task_arena.h>
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -746,7 +748,11 @@ void store_leaf_links(HierarchicalOperator::Impl& d, Refiner& rf, HierarchyStats
   d.leaf_src.reset(new int[size_t(d.leaf_count)]);
   d.leaf_F.reset(new double[size_t(d.leaf_count)]);
   d.leaf_off.assign(size_t(n) + 1, 0);
-  tbb::parallel_for(tbb::blocked_range<int>(0, buckets, 1), [&](const tbb::blocked_range<int>& r) {
+  // In rounds of buckets; after each round the freed records' pages go back to the system (the records' blocks
+  // come from malloc's heap, where freed memory stays resident until trimmed).
+  constexpr int kRound = 16;
+  for (int b0 = 0; b0 < buckets; b0 += kRound) {
+  tbb::parallel_for(tbb::blocked_range<int>(b0, std::min(buckets, b0 + kRound), 1), [&](const tbb::blocked_range<int>& r) {
     std::vector<LeafRecord> recs;
     for (int b = r.begin(); b < r.end(); ++b) {
       recs.clear();
@@ -768,6 +774,8 @@ void store_leaf_links(HierarchicalOperator::Impl& d, Refiner& rf, HierarchyStats
       }
     }
   });
+  malloc_trim(0);
+  }
   for (int k = 0; k < n; ++k) d.leaf_off[size_t(k) + 1] += d.leaf_off[size_t(k)];
   // The transposed scatter's row blocks: about equal entries, at most kLeafBlocks, from the stored rows only.
   constexpr int kLeafBlocks = 16;
