@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -64,6 +66,7 @@ mesh::Scene load(const CommonOptions& o, PhaseTimer& timer, bool solving = true)
   build.warn_no_emitter = solving;
   mesh::Scene scene = mesh::prepare_and_build(soup, o.prepare, build);
   timer.stop();
+  malloc_trim(0);  // the preparation's freed heap back to the system before the operator is built
   for (const auto& w : scene.report.warnings) say(o, "lambert: warning: " + w);
   return scene;
 }

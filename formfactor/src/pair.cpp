@@ -203,7 +203,7 @@ PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
         } else if (tier == 1) {
           F = contour_sum(P.c[s], P.nrm[s], Pt) + hessian_correction(P.c[s], P.nrm[s], P.M[s], P.c[t], P.nrm[t], P.area[t]);
           out.evaluations = 1;
-        } else if (m <= 4) {
+        } else if (m <= 4 && !P.rule_off[m].empty()) {  // rules prepared (prepare's max_tier)
           for (int k = P.rule_off[m][s]; k < P.rule_off[m][s + 1]; ++k) {
             const auto& X = P.rule_pts[m][k];
             F += X[3] * contour_sum(Vec3(X[0], X[1], X[2]), P.nrm[s], Pt);
