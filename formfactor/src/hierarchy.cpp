@@ -270,6 +270,9 @@ struct Local {
 
 constexpr double kExpansionConstant = 0.005;
 constexpr int kMaxBlockedRays = 256;
+// Rays that all agree (all blocked, or all free) bound the other kind's share by kRayConfidence / rays: 3 is the
+// "rule of three", a 95 % upper confidence bound (1 would be 63 %).
+constexpr double kRayConfidence = 3.0;
 // A link whose error (times its source's brightness) is below this fraction of the link tolerance is accepted
 // whatever its relative error (grazing and distant links).
 constexpr double kAbsolute = 0.002;
@@ -488,11 +491,11 @@ class Refiner {
     };
     if (!ok(e, e)) return false;
     // Rays cannot certify a shaft better than 1/cluster_rays: if even that would fail, refine without casting.
-    const double e_rays = e + k_hi / std::max(1, o_.cluster_rays);
+    const double e_rays = e + kRayConfidence * k_hi / std::max(1, o_.cluster_rays);
     // A link every ray finds blocked carries no light; what the rays may have missed (a transmittance up to
     // about 1/rays) is admitted when, times the source's brightness, it is within the link tolerance.
     // Up to kMaxBlockedRays rays are cast to certify a blocked pair (stopping at the first visible one).
-    const double need = k_hi * std::max(B.area * lb, A.area * la) / tol;
+    const double need = kRayConfidence * k_hi * std::max(B.area * lb, A.area * la) / tol;
     const int max_rays = need <= kMaxBlockedRays ? int(std::ceil(need)) : 0;
     const bool rays_could_pass = ok(e_rays, e_rays) || max_rays > 0;
     const VisResult v = link_visibility(A, B, a, b, loc, rays_could_pass, max_rays);
@@ -546,8 +549,20 @@ class Refiner {
     // time would: the same result; the rays traced past the one that ends the loop are counted in the statistics.
     constexpr int kBatch = 32;
     const int total = std::max(R0, max_rays);
-    auto pick = [&](const HNode& nd, std::uint64_t h) {
-      const double u = cum_[nd.begin] + (double(h >> 11) * 0x1.0p-53) * (cum_[nd.end] - cum_[nd.begin]);
+    // The ray's patches by area, along the tree order (spatially coherent): ray k takes the k-th point of a Halton
+    // sequence (bases 2 and 3), each coordinate shifted by a random offset (Cranley-Patterson rotation), as its
+    // positions u_a, u_b in the two clusters' cumulative areas. Any first 2^m rays then cover A's area in 2^m equal
+    // parts: a part of the receivers that sees through a gap gets its share of rays (independent draws could leave
+    // a facade patch of 1 % of its cluster without a ray: a missed view of the sky, accepted as blocked).
+    const double rot_a = double(detail::mix(seed ^ 0xA5A5A5A5ull) >> 11) * 0x1.0p-53;
+    const double rot_b = double(detail::mix(seed ^ 0x5A5A5A5Aull) >> 11) * 0x1.0p-53;
+    auto radical_inverse = [](unsigned k, unsigned base) {
+      double inv = 1.0 / base, f = inv, r = 0;
+      for (; k > 0; k /= base, f *= inv) r += f * double(k % base);
+      return r;
+    };
+    auto pick = [&](const HNode& nd, double v) {
+      const double u = cum_[nd.begin] + v * (cum_[nd.end] - cum_[nd.begin]);
       int k2 = int(std::upper_bound(cum_.begin() + nd.begin + 1, cum_.begin() + nd.end + 1, u) - cum_.begin()) - 1;
       return d_.perm[std::clamp(k2, nd.begin, nd.end - 1)];
     };
@@ -562,7 +577,10 @@ class Refiner {
       loc.ray_w.assign(size_t(k1 - k0), -1.0);
       for (int k = k0; k < k1; ++k) {
         const std::uint64_t sk = detail::mix(seed + std::uint64_t(k));
-        const int pa = pick(A, sk), pb = pick(B, detail::mix(sk ^ 0x5555));
+        double ua = radical_inverse(unsigned(k), 2) + rot_a, ub = radical_inverse(unsigned(k), 3) + rot_b;
+        ua -= std::floor(ua);
+        ub -= std::floor(ub);
+        const int pa = pick(A, ua), pb = pick(B, ub);
         detail::sample_patch(g_, d_.P, pa, 1, 1, detail::mix(sk + 1), loc.pa);
         detail::sample_patch(g_, d_.P, pb, 1, 1, detail::mix(sk + 2), loc.pb);
         const Vec3 x = loc.pa[0], y = loc.pb[0], dv = y - x;
@@ -598,7 +616,7 @@ class Refiner {
     VisResult r;
     if (!(den > 0)) return {1.0, 0.5};
     r.V = num / den;
-    r.uncertainty = (hidden == 0 || seen == 0) ? 1.0 / cast : 0.5;
+    r.uncertainty = (hidden == 0 || seen == 0) ? kRayConfidence / cast : 0.5;
     return r;
   }
 
