@@ -19,13 +19,14 @@
 //     (c the largest cosines, d_min = D - R_A - R_B; the third-order remainder's form with a constant
 //     calibrated on the tests, docs/physics.md §10). Accepted when that error plus the visibility uncertainty, times the source's
 //     brightness (Lmax_B / L_ref: Options::brightness, relative to the brightest), is within the link tolerance
-//     relative to the link's smallest value, or below 1% of the link tolerance in absolute terms; otherwise
+//     relative to the link's smallest value, or below 0.2% of the link tolerance in absolute terms; otherwise
 //     the larger node is split. Link tolerance: Options::tolerance x min(1, (1 - rho_max) / rho_max).
 // Visibility of a far link: 1 when the shaft between the clusters' boxes is proven empty of occluders;
 // otherwise a kernel-weighted ray estimate (cluster_rays rays between area-sampled points of both clusters),
-// with uncertainty 0.5 when the rays disagree (a shadow edge across the link: split) and 1/rays when they agree;
-// a pair every ray finds blocked stores nothing when F_max / rays times the source's brightness is within the
-// link tolerance (rooms behind walls), its possible transmittance counted in the admitted error.
+// with uncertainty 0.5 when the rays disagree (a shadow edge across the link: split) and 3/rays when they agree
+// (a 95 % bound); a pair every ray finds blocked stores nothing when 3 F_max / rays times the source's
+// brightness is within the link tolerance (rooms behind walls), its possible transmittance counted in the
+// admitted error.
 // The one visibility call is link_visibility() in src/hierarchy.cpp (rays today; exact visibility can replace it).
 //
 // Error admitted. Each link adds its error estimate (F units) to its receivers' rows (pushed down the tree),
