@@ -97,6 +97,56 @@ TEST(Hierarchy, MatchesDenseWithinAdmittedError) {
 }
 
 
+// A ground of 16 x 16 patches (8 m) lit by a distant emitter (4 x 4 patches, 24 m) through a 0.5 m window in a wall
+// between them: a few ground patches see the emitter, the rest do not. Cluster links accepted as blocked miss some
+// of that light (the hierarchy gives 0 where dense has up to 1.5e-3); what their rays may have missed must be in
+// the rows' admitted error (kRayConfidence / rays in src/hierarchy.cpp). Twelve window positions, each a different
+// draw of rays. Tolerance: the row's admitted error, as above (1e-12: summation order); the dense reference's
+// visibility is its own ray estimate per pair, the same as the hierarchy's leaf pairs'. Fails in every window if
+// blocked links admit nothing; it does not tell 3/rays from 1/rays (the worst ratio is 0.19 with 3/rays).
+TEST(Hierarchy, GapInAWallWithinAdmittedError) {
+  using mesh::shapes::grid;
+  int failures = 0;
+  for (int k = 0; k < 12; ++k) {
+    mesh::shapes::Polygons p = grid(Vec3(0, 0, 0), Vec3(8, 0, 0), Vec3(0, 8, 0), 16, 16);  // ground, normal +z
+    const double y0 = 1.0 + 0.5 * k, z0 = 1.0 + 0.2 * k, w = 0.5;                      // the window
+    auto wall = [&](double ya, double yb, double za, double zb) {                      // at x = 12, normal -x
+      if (yb > ya && zb > za) p.push_back({Vec3(12, ya, za), Vec3(12, ya, zb), Vec3(12, yb, zb), Vec3(12, yb, za)});
+    };
+    wall(-10, 18, 0, z0);
+    wall(-10, 18, z0 + w, 12);
+    wall(-10, y0, z0, z0 + w);
+    wall(y0 + w, 18, z0, z0 + w);
+    for (const auto& q : grid(Vec3(40, -8, 0), Vec3(0, 0, 24), Vec3(0, 24, 0), 4, 4)) p.push_back(q);  // emitter, -x
+    const mesh::PatchGeometry g = polys(p);
+    const int n = g.size();
+    Options fo;
+    fo.tolerance = 1e-10;
+    const DenseMatrixOperator F = assemble(g, fo);
+    HierarchyOptions ho;
+    ho.tolerance = 1e-3;
+    ho.entry_tolerance = 1e-10;
+    HierarchyStats st;
+    const HierarchicalOperator H = build_hierarchy(g, ho, &st);
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(n), y0v(n), y1v(n);
+    for (int i = n - 16; i < n; ++i) x[i] = 1;  // the emitter
+    F.apply(x, y0v);
+    H.apply(x, y1v);
+    double worst_ratio = 0;
+    int at = 0;
+    for (int i = 0; i < 256; ++i) {
+      const double ratio = std::abs(y1v[i] - y0v[i]) / (st.row_error[i] + 1e-12);  // x: 0 or 1
+      if (ratio > worst_ratio) worst_ratio = ratio, at = i;
+    }
+    std::printf("window %d: max ground F from the emitter %.2e, worst ratio to the admitted error %.3f at %d "
+                "(dense %.3e, hierarchical %.3e)\n", k, y0v.head(256).maxCoeff(), worst_ratio, at, y0v[at], y1v[at]);
+    failures += worst_ratio > 1.0;
+    EXPECT_LE(worst_ratio, 1.0) << "window " << k << ": ground patch " << at << " dense " << y0v[at]
+                                << " hierarchical " << y1v[at] << " admitted " << st.row_error[at];
+  }
+  std::printf("windows whose ground gets more error than admitted: %d of 12\n", failures);
+}
+
 // Solves with the hierarchical operator; returns the radiance (channel 0) and the error bound of
 // docs/physics.md §5 from the hierarchy's admitted row error, its visibility (3 sigma) and the residual.
 struct HSolve {

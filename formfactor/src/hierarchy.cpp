@@ -771,29 +771,30 @@ void store_leaf_links(HierarchicalOperator::Impl& d, Refiner& rf, HierarchyStats
   // only the memory, not the result.
   const int round = std::max(1, tbb::this_task_arena::max_concurrency());
   for (int b0 = 0; b0 < buckets; b0 += round) {
-  tbb::parallel_for(tbb::blocked_range<int>(b0, std::min(buckets, b0 + round), 1), [&](const tbb::blocked_range<int>& r) {
-    std::vector<LeafRecord> recs;
-    for (int b = r.begin(); b < r.end(); ++b) {
-      recs.clear();
-      recs.reserve(size_t(bucket_off[size_t(b) + 1] - bucket_off[size_t(b)]));
-      for (Local* l : locals) {
-        if (size_t(b) >= l->leaf.size()) continue;
-        l->leaf[size_t(b)].for_each([&](const LeafRecord& x) { recs.push_back(x); });
-        l->leaf[size_t(b)].clear();
+    tbb::parallel_for(tbb::blocked_range<int>(b0, std::min(buckets, b0 + round), 1),
+                      [&](const tbb::blocked_range<int>& r) {
+      std::vector<LeafRecord> recs;
+      for (int b = r.begin(); b < r.end(); ++b) {
+        recs.clear();
+        recs.reserve(size_t(bucket_off[size_t(b) + 1] - bucket_off[size_t(b)]));
+        for (Local* l : locals) {
+          if (size_t(b) >= l->leaf.size()) continue;
+          l->leaf[size_t(b)].for_each([&](const LeafRecord& x) { recs.push_back(x); });
+          l->leaf[size_t(b)].clear();
+        }
+        std::sort(recs.begin(), recs.end(), [](const LeafRecord& x, const LeafRecord& y) {
+          return x.s != y.s ? x.s < y.s : x.t < y.t;
+        });
+        std::int64_t e = bucket_off[size_t(b)];
+        for (const LeafRecord& x : recs) {
+          d.leaf_src[size_t(e)] = x.t;
+          d.leaf_F[size_t(e)] = x.Fst;
+          ++e;
+          ++d.leaf_off[size_t(x.s) + 1];  // rows of this bucket only
+        }
       }
-      std::sort(recs.begin(), recs.end(), [](const LeafRecord& x, const LeafRecord& y) {
-        return x.s != y.s ? x.s < y.s : x.t < y.t;
-      });
-      std::int64_t e = bucket_off[size_t(b)];
-      for (const LeafRecord& x : recs) {
-        d.leaf_src[size_t(e)] = x.t;
-        d.leaf_F[size_t(e)] = x.Fst;
-        ++e;
-        ++d.leaf_off[size_t(x.s) + 1];  // rows of this bucket only
-      }
-    }
-  });
-  malloc_trim(0);
+    });
+    malloc_trim(0);
   }
   for (int k = 0; k < n; ++k) d.leaf_off[size_t(k) + 1] += d.leaf_off[size_t(k)];
   // The transposed scatter's row blocks: about equal entries, at most kLeafBlocks, from the stored rows only.

@@ -148,13 +148,13 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
     S->rec.resize(size_t(nn) * kRec);
     S->acc.resize(size_t(nn) * kAcc);
     for (int k = 0; k < nn; ++k) std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rec.data() + size_t(k) * kRec);
-    S->z.resize((d.leaf_blocks.size() - 1) * size_t(n));
+    S->z.resize(size_t(std::max(0, int(d.leaf_blocks.size()) - 1)) * size_t(n));
   }
   double* rec = S->rec.data();
   double* acc = S->acc.data();
   // The leaf pairs' transposed entries F_ts = F_st A_s / A_t: each fixed block of source rows scatters into its
-  // own array (in parallel with the cluster part), summed below in block order.
-  const int blocks = int(d.leaf_blocks.size()) - 1;
+  // own array (blocks in parallel), summed below in block order.
+  const int blocks = std::max(0, int(d.leaf_blocks.size()) - 1);
   auto scatter = [&] {
     tbb::parallel_for(tbb::blocked_range<int>(0, blocks, 1), [&](const tbb::blocked_range<int>& r) {
       for (int b = r.begin(); b < r.end(); ++b) {
