@@ -766,10 +766,10 @@ void store_leaf_links(HierarchicalOperator::Impl& d, Refiner& rf, HierarchyStats
   d.leaf_src.reset(new int[size_t(d.leaf_count)]);
   d.leaf_F.reset(new double[size_t(d.leaf_count)]);
   d.leaf_off.assign(size_t(n) + 1, 0);
-  // In rounds of one bucket per thread; after each round the freed records' pages go back to the system (the
-  // records' blocks come from malloc's heap, where freed memory stays resident until trimmed). The rounds change
-  // only the memory, not the result.
-  const int round = std::max(1, tbb::this_task_arena::max_concurrency());
+  // In rounds of one bucket per thread (at most about 32 rounds: each trim walks the heap); after each round the
+  // freed records' pages go back to the system (the records' blocks come from malloc's heap, where freed memory
+  // stays resident until trimmed). The rounds change only the memory, not the result.
+  const int round = std::max({1, tbb::this_task_arena::max_concurrency(), (buckets + 31) / 32});
   for (int b0 = 0; b0 < buckets; b0 += round) {
     tbb::parallel_for(tbb::blocked_range<int>(b0, std::min(buckets, b0 + round), 1),
                       [&](const tbb::blocked_range<int>& r) {
