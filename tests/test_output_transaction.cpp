@@ -2,12 +2,11 @@
 // or SIGINT/SIGTERM; large polygons are triangulated validly (CGAL constrained Delaunay).
 #include <gtest/gtest.h>
 #include <signal.h>
-
-#include <cstdio>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>

@@ -250,7 +250,7 @@ void sort_rows(const std::vector<std::int64_t>& off, std::vector<int>& src, std:
 
 struct Local {
   Chunked<FarRecord> far;  // links that carry light (blocked links keep only their admitted error, below)
-  std::vector<Chunked<LeafRecord, 12>> leaf;  // per bucket of sources (kBucketRows), created on first use
+  std::vector<Chunked<LeafRecord, 12>> leaf;  // per bucket of sources (kBucketRows; blocks of 2^12 records, 64 kB)
   std::vector<double> leaf_err, leaf_sig2;    // per patch: admitted error and visibility variance of its leaf links
   std::vector<double> blocked_err, blocked_lerr;  // per node: admitted error of its blocked links (or empty)
   long long culled = 0, cell_culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
@@ -490,10 +490,11 @@ class Refiner {
              (err_b * la <= tol * k_lo || err_b * A.area * la <= kAbsolute * tol);
     };
     if (!ok(e, e)) return false;
-    // Rays cannot certify a shaft better than 1/cluster_rays: if even that would fail, refine without casting.
+    // Rays cannot certify a shaft better than kRayConfidence/cluster_rays: if even that would fail, refine without
+    // casting.
     const double e_rays = e + kRayConfidence * k_hi / std::max(1, o_.cluster_rays);
     // A link every ray finds blocked carries no light; what the rays may have missed (a transmittance up to
-    // about 1/rays) is admitted when, times the source's brightness, it is within the link tolerance.
+    // kRayConfidence/rays) is admitted when, times the source's brightness, it is within the link tolerance.
     // Up to kMaxBlockedRays rays are cast to certify a blocked pair (stopping at the first visible one).
     const double need = kRayConfidence * k_hi * std::max(B.area * lb, A.area * la) / tol;
     const int max_rays = need <= kMaxBlockedRays ? int(std::ceil(need)) : 0;

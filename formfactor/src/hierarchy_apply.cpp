@@ -152,22 +152,6 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   }
   double* rec = S->rec.data();
   double* acc = S->acc.data();
-  // The leaf pairs' transposed entries F_ts = F_st A_s / A_t: each fixed block of source rows scatters into its
-  // own array (blocks in parallel), summed below in block order.
-  const int blocks = std::max(0, int(d.leaf_blocks.size()) - 1);
-  auto scatter = [&] {
-    tbb::parallel_for(tbb::blocked_range<int>(0, blocks, 1), [&](const tbb::blocked_range<int>& r) {
-      for (int b = r.begin(); b < r.end(); ++b) {
-        double* z = S->z.data() + size_t(b) * size_t(n);
-        std::fill_n(z, n, 0.0);
-        for (int s = d.leaf_blocks[size_t(b)]; s < d.leaf_blocks[size_t(b) + 1]; ++s) {
-          const double v = g.area[s] * x[s];
-          if (v == 0) continue;
-          for (std::int64_t e = d.leaf_off[s]; e < d.leaf_off[s + 1]; ++e) z[d.leaf_src[e]] += d.leaf_F[e] * v;
-        }
-      }
-    });
-  };
   pull(d, x, rec, 0);
   // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
   // stored order (deterministic for any thread count).
@@ -181,7 +165,20 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
     }
   });
   push(d, acc, 0);
-  scatter();
+  // The leaf pairs' transposed entries F_ts = F_st A_s / A_t: each fixed block of source rows scatters into its
+  // own array (blocks in parallel), summed below in block order.
+  const int blocks = std::max(0, int(d.leaf_blocks.size()) - 1);
+  tbb::parallel_for(tbb::blocked_range<int>(0, blocks, 1), [&](const tbb::blocked_range<int>& r) {
+    for (int b = r.begin(); b < r.end(); ++b) {
+      double* z = S->z.data() + size_t(b) * size_t(n);
+      std::fill_n(z, n, 0.0);
+      for (int s = d.leaf_blocks[size_t(b)]; s < d.leaf_blocks[size_t(b) + 1]; ++s) {
+        const double v = g.area[s] * x[s];
+        if (v == 0) continue;
+        for (std::int64_t e = d.leaf_off[s]; e < d.leaf_off[s + 1]; ++e) z[d.leaf_src[e]] += d.leaf_F[e] * v;
+      }
+    }
+  });
   // Leaves: n_i . (g + H : M_i / 2) (the patch's own extent) plus the exact entries, both directions.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
