@@ -42,7 +42,7 @@ double signed_contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> po
     // a x b = a x (b - a): the edge vector is exact, so far points keep their relative accuracy.
     const Vec3 c = a.cross(v1 - poly[k]);
     const double cn = c.norm();
-    if (cn > 0) sum += std::atan2(cn, a.dot(b)) * (n.dot(c) / cn);  // |c| = 0: x on the edge's line or a zero-length edge
+    if (cn > 0) sum += atan2_pos(cn, a.dot(b)) * (n.dot(c) / cn);  // |c| = 0: x on the edge's line or a zero-length edge
     a = b;
   }
   return sum;
