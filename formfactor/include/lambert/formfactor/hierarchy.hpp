@@ -26,7 +26,7 @@
 // with uncertainty 0.5 when the rays disagree (a shadow edge across the link: split) and 3/rays when they agree
 // (a 95 % bound); a pair every ray finds blocked stores nothing when 3 F_max / rays times the source's
 // brightness is within the link tolerance (rooms behind walls), its possible transmittance counted in the
-// admitted error.
+// admitted error. The rays stop as soon as the outcome is decided (the same links as reading all of them).
 // The one visibility call is link_visibility() in src/hierarchy.cpp (rays today; exact visibility can replace it).
 //
 // Error admitted. Each link adds its error estimate (F units) to its receivers' rows (pushed down the tree),
