@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "atan_reduced.hpp"
 #include "batch.hpp"
 #include "lambert/mesh/geometry.hpp"
 
@@ -15,23 +16,17 @@ namespace lambert::formfactor::detail {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// atan2(z, w) for z >= 0, in [0, pi]: the rational approximation of the SIMD kernels (isa/batch.cpp, Cephes atan on
-// [0, 0.66] after atan(a) = pi/4 + atan((a - 1)/(a + 1))), ~1 ulp, about 3x faster than std::atan2 (which was a
-// tenth of the hierarchy's build on the generated building).
+// atan2(z, w) for z >= 0, in [0, pi]: the rational approximation of the SIMD kernels (atan_reduced.hpp), ~1 ulp,
+// about 3x faster than std::atan2 (which was a tenth of the hierarchy's build on the generated building).
 inline double atan2_pos(double z, double w) {
   const double aw = w < 0 ? -w : w;
   const double mx = z > aw ? z : aw, mn = z > aw ? aw : z;
-  const bool big = mn > 0.66 * mx;
+  const bool big = mn > kAtanSplit * mx;
   const double num = big ? mn - mx : mn;
   double den = big ? mn + mx : mx;
   if (!(den > 0)) den = 1.0;
-  const double t = num / den, t2 = t * t;
-  const double p = (((-8.750608600031904122785e-1 * t2 - 1.615753718733365076637e1) * t2 - 7.500855792314704667340e1) * t2 -
-                    1.228866684490136173410e2) * t2 - 6.485021904942025371773e1;
-  const double q = ((((t2 + 2.485846490142306297962e1) * t2 + 1.650270098316988542046e2) * t2 + 4.328810604912902668951e2) *
-                        t2 + 4.853903996359136964868e2) * t2 + 1.945506571482613964425e2;
-  const double at = t + t * (t2 * p / q);
-  const double phi = big ? (kPi / 4) + (at + 3.061616997868382943065e-17) : at;
+  const double at = atan_reduced(num / den);
+  const double phi = big ? (kPi / 4) + (at + kPio4Tail) : at;
   const double th = z > aw ? (kPi / 2) - phi : phi;
   return w < 0 ? kPi - th : th;
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "../atan_reduced.hpp"
 #include "../batch.hpp"
 
 #ifndef LAMBERT_ISA_SUFFIX
@@ -52,22 +53,16 @@ inline bool any(vl m) {
 inline vd vmax(vd a, vd b) { return a > b ? a : b; }
 inline vd vmin(vd a, vd b) { return a < b ? a : b; }
 
-// atan2(z, w) for z >= 0, in [0, pi]. Cephes-style rational approximation of atan on [0, 0.66] after the
-// reduction atan(a) = pi/4 + atan((a - 1)/(a + 1)); ~1 ulp.
+// atan2(z, w) for z >= 0, in [0, pi] (atan_reduced.hpp; ~1 ulp).
 inline vd atan2_pos(vd z, vd w) {
   const vd aw = vabs(w);
   const vd mx = vmax(z, aw), mn = vmin(z, aw);
-  const vl big = mn > 0.66 * mx;
+  const vl big = mn > kAtanSplit * mx;
   const vd num = sel(big, mn - mx, mn);
   vd den = sel(big, mn + mx, mx);
   den = sel(den > 0, den, splat(1.0));
-  const vd t = num / den, t2 = t * t;
-  const vd p = (((-8.750608600031904122785e-1 * t2 - 1.615753718733365076637e1) * t2 - 7.500855792314704667340e1) * t2 -
-                1.228866684490136173410e2) * t2 - 6.485021904942025371773e1;
-  const vd q = ((((t2 + 2.485846490142306297962e1) * t2 + 1.650270098316988542046e2) * t2 + 4.328810604912902668951e2) *
-                    t2 + 4.853903996359136964868e2) * t2 + 1.945506571482613964425e2;
-  const vd at = t + t * (t2 * p / q);
-  const vd phi = sel(big, (kPi / 4) + (at + 3.061616997868382943065e-17), at);
+  const vd at = atan_reduced(num / den);
+  const vd phi = sel(big, (kPi / 4) + (at + kPio4Tail), at);
   vd th = sel(z > aw, (kPi / 2) - phi, phi);
   return sel(w < 0, kPi - th, th);
 }
