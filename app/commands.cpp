@@ -425,6 +425,8 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                                       {"surface_patches", h.enclosure_patches}, {"cells", h.cells},
                                       {"patches_of_unknown_cell", h.cell_unknown}, {"pairs_refused", h.pairs_cell_culled},
                                       {"seconds", h.seconds_enclosures}}},
+                      {"portals", {{"openings", h.portals}, {"room_cells", h.room_cells},
+                                   {"pairs_refused", h.pairs_portal_culled}, {"seconds", h.seconds_portals}}},
                       {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
                       {"radiance_error_max", h.radiance_error_max},
                       {"row_visibility_sigma_max", h.row_visibility_sigma_max}, {"bytes", h.bytes},
@@ -516,6 +518,10 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                                                     h.cell_unknown, h.cell_crossed)
                                       : "",
                        h.pairs_cell_culled, h.seconds_enclosures);
+    if (h.portals > 0)
+      s += fmt::format("  portals      {} openings closed by portals: {} rooms; {} node pairs in different rooms whose "
+                       "shaft meets no portal between them refused without rays ({:.2f} s)\n",
+                       h.portals, h.room_cells, h.pairs_portal_culled, h.seconds_portals);
     const long long exact = h.pairs_exact_clear + h.pairs_exact_hidden + h.pairs_exact_integrated;
     if (exact > 0)
       s += fmt::format("  visibility   {}: {} patch pairs exact ({} proven clear, {} hidden, {} integrated at {} points{}); "

@@ -529,6 +529,9 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
     out.cell[p] = it->second;
   }
   out.cells = int(ids.size());
+  out.cell_surfaces.resize(ids.size());
+  for (const auto& [key, id] : ids) out.cell_surfaces[size_t(id)] = key;
+  out.surfaces_of = std::move(surf);
   out.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return out;
 }

@@ -16,6 +16,7 @@
 // that crosses a patch of a surface, or is crossed by one (an edge through the other), or that a surface's edge
 // touches inside (a box standing on a floor that was not split there), as in a model that was not repaired, gets
 // cell -1 too: its front lies on both sides. Cell -1 never refuses anything.
+#include <array>
 #include <vector>
 
 #include "lambert/mesh/geometry.hpp"
@@ -30,6 +31,8 @@ struct Enclosures {
   int cells = 0;                    // distinct cell ids
   long long unknown = 0;            // patches with cell -1
   double seconds = 0;
+  std::vector<std::array<int, 2>> surfaces_of;   // per patch: the surfaces of its two sides (-1: none)
+  std::vector<std::vector<int>> cell_surfaces;   // per cell: the surfaces whose inside holds it (sorted)
 };
 
 // eps: contact distance (m, > 0): edge points within eps of another edge's line are on it, pieces of edges shorter

@@ -101,10 +101,9 @@ int OccluderTree::build(int begin, int end) {
   return id;
 }
 
-bool OccluderTree::item_may_block(const Shaft& s, int p) const {
-  if (box_outside(s, boxes_[p])) return false;
-  // Tighter: the occluder's own corners against the shaft planes and the two patch planes.
-  const auto poly = g_->polygon(p);
+bool polygon_may_meet(const Shaft& s, const Box& box, std::span<const Vec3> poly) {
+  if (box_outside(s, box)) return false;
+  // Tighter: the polygon's own corners against the shaft planes and the two patch planes.
   for (int q = 0; q < s.planes; ++q) {
     bool out = true;
     for (const Vec3& v : poly)
@@ -121,6 +120,8 @@ bool OccluderTree::item_may_block(const Shaft& s, int p) const {
   }
   return !(behind_i || behind_j);
 }
+
+bool OccluderTree::item_may_block(const Shaft& s, int p) const { return polygon_may_meet(s, boxes_[p], g_->polygon(p)); }
 
 // Visits, in tree order (left subtree first), every occluder other than ia and ib that may meet the shaft,
 // until `visit` returns true; returns whether it did.

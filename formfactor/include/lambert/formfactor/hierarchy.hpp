@@ -75,6 +75,10 @@ struct HierarchyOptions {
   // Closed surfaces (rooms, apartments, shut boxes; T-junctions allowed) split space into cells; node pairs whose
   // patches face different cells exchange no light and are refused without rays (with visibility only).
   bool enclosures = true;
+  // With enclosures: openings (holes in the union of a plane's patches: doors, open windows) closed by virtual
+  // portals split the closed surfaces into rooms; node pairs in different rooms whose shaft meets no portal of a
+  // surface between them are refused without rays.
+  bool portals = true;
   int threads = 0;             // 0 = all cores
   std::size_t max_bytes = 0;   // refuse to build beyond this (0 = system_memory_limit())
   std::shared_ptr<const Visibility> caster;  // null = Embree over the potential occluders
@@ -94,6 +98,9 @@ struct HierarchyStats {
   long long enclosure_patches = 0, cell_unknown = 0;     // patches on closed surfaces; patches of no known cell
   long long cell_crossed = 0;                            // of those: crossing, crossed by or touched inside by a surface
   double seconds_enclosures = 0;
+  long long portals = 0, room_cells = 0;    // openings closed by portals; cells with them closed
+  long long pairs_portal_culled = 0;        // node pairs in different rooms whose shaft meets no portal between them
+  double seconds_portals = 0;
   long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;  // exact visibility path
   long long exact_points = 0, pairs_exact_over_tolerance = 0;
   std::vector<long long> far_links_per_level;  // by the level of the deeper node

@@ -1,0 +1,162 @@
+// Openings as portal polygons (portals.hpp).
+#include "portals.hpp"
+
+#include <polyclipping/clipper.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <unordered_map>
+#include <array>
+
+namespace lambert::formfactor::detail {
+
+std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, double eps) {
+  std::vector<std::vector<Vec3>> out;
+  const int n = g.size();
+  if (n < 2 || !(eps > 0)) return out;
+  Eigen::AlignedBox3d box;
+  for (const Vec3& v : g.points) box.extend(v);
+  const double scale = box.diagonal().norm();
+  if (!(scale > 0)) return out;
+  std::vector<int> ids(static_cast<size_t>(n));
+  std::iota(ids.begin(), ids.end(), 0);
+  const std::vector<int> plane = mesh::plane_ids(g, ids, scale);
+  int planes = 0;
+  for (int id : plane) planes = std::max(planes, id + 1);
+  // Patches per plane, in patch order.
+  std::vector<int> count(size_t(planes) + 1, 0);
+  for (int p = 0; p < n; ++p) ++count[size_t(plane[p]) + 1];
+  for (int k = 0; k < planes; ++k) count[size_t(k) + 1] += count[size_t(k)];
+  std::vector<int> members(static_cast<size_t>(n));
+  {
+    std::vector<int> at(count.begin(), count.end() - 1);
+    for (int p = 0; p < n; ++p) members[size_t(at[size_t(plane[p])]++)] = p;
+  }
+  const double lim = double(ClipperLib::loRange);
+  // Clipper units: eps / 16, so that snapped corners stay within eps / 32 of the patches' (enclosures.hpp joins
+  // edges within eps).
+  const double unit = eps / 16, inv = 1.0 / unit;
+  // Edges lying in an axis-aligned plane, by axis and coordinate (bins of eps): the traces of faces that meet a
+  // plane along an edge (a threshold under a door, a floor's edge along a wall's base) close the openings that
+  // reach the plane's border, as a door reaches the floor.
+  struct Edge {
+    int patch;
+    Vec3 a, b;
+  };
+  std::array<std::unordered_map<long long, std::vector<Edge>>, 3> in_plane;
+  for (int p = 0; p < n; ++p) {
+    const auto poly = g.polygon(p);
+    for (size_t i = 0; i < poly.size(); ++i) {
+      const Vec3 &a = poly[i], &b = poly[(i + 1) % poly.size()];
+      for (int k = 0; k < 3; ++k)
+        if (std::abs(a[k] - b[k]) <= eps) in_plane[size_t(k)][std::llround(a[k] / eps)].push_back({p, a, b});
+    }
+  }
+  ClipperLib::Clipper clipper;
+  ClipperLib::PolyTree tree;
+  ClipperLib::Paths own, all, ring, cover;
+  for (int k = 0; k < planes; ++k) {
+    const int b = count[size_t(k)], e = count[size_t(k) + 1];
+    // The plane's frame: the first patch's normal (made canonical as plane_ids does), origin at its centroid.
+    const int p0 = members[size_t(b)];
+    Vec3 nrm = g.normal[p0];
+    int big = 0;
+    for (int c = 1; c < 3; ++c)
+      if (std::abs(nrm[c]) > std::abs(nrm[big])) big = c;
+    if (nrm[big] < 0) nrm = -nrm;
+    const Vec3 u = (std::abs(nrm.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(nrm).normalized();
+    const Vec3 v = nrm.cross(u);
+    const Vec3 o = g.centroid[p0];
+    const double off = nrm.dot(o);
+    bool fits = true;
+    auto snap = [&](const Vec3& c) {
+      const double x = u.dot(c - o) * inv, y = v.dot(c - o) * inv;
+      if (!(std::abs(x) < lim && std::abs(y) < lim)) fits = false;
+      return ClipperLib::IntPoint(ClipperLib::cInt(std::llround(fits ? x : 0)), ClipperLib::cInt(std::llround(fits ? y : 0)));
+    };
+    own.clear();
+    for (int m = b; m < e && fits; ++m) {
+      ClipperLib::Path path;
+      for (const Vec3& c : g.polygon(members[size_t(m)])) path.push_back(snap(c));
+      if (path.size() < 3) continue;
+      if (!ClipperLib::Orientation(path)) ClipperLib::ReversePath(path);  // faces facing either way: all positive
+      own.push_back(std::move(path));
+    }
+    if (!fits || own.empty()) continue;
+    all = own;
+    if (nrm[big] > 1 - 1e-9) {  // axis-aligned: the other faces' edges in this plane, as strips eps / 4 wide
+      const double c0 = o[big];
+      const long long bin = std::llround(c0 / eps);
+      for (long long bb = bin - 1; bb <= bin + 1; ++bb) {
+        const auto it = in_plane[size_t(big)].find(bb);
+        if (it == in_plane[size_t(big)].end()) continue;
+        for (const Edge& ed : it->second) {
+          if (plane[size_t(ed.patch)] == k || std::abs(ed.a[big] - c0) > eps || std::abs(ed.b[big] - c0) > eps) continue;
+          const ClipperLib::IntPoint pa = snap(ed.a), pb = snap(ed.b);
+          const double dx = double(pb.X - pa.X), dy = double(pb.Y - pa.Y), len = std::hypot(dx, dy);
+          if (!fits || !(len > 0)) continue;
+          const double tx = 2 * dx / len, ty = 2 * dy / len;  // 2 units (eps / 8) along and across
+          auto at = [&](const ClipperLib::IntPoint& q, double sx, double sy) {
+            return ClipperLib::IntPoint(q.X + ClipperLib::cInt(std::llround(sx)), q.Y + ClipperLib::cInt(std::llround(sy)));
+          };
+          ClipperLib::Path strip{at(pa, -tx + ty, -ty - tx), at(pb, tx + ty, ty - tx), at(pb, tx - ty, ty + tx),
+                                 at(pa, -tx - ty, -ty + tx)};
+          if (!ClipperLib::Orientation(strip)) ClipperLib::ReversePath(strip);
+          all.push_back(std::move(strip));
+        }
+      }
+    }
+    if (!fits || all.size() < 2) continue;  // one simple polygon has no hole
+    clipper.Clear();
+    clipper.StrictlySimple(true);  // no hole touching itself at a corner
+    clipper.AddPaths(all, ClipperLib::ptSubject, true);
+    tree.Clear();
+    if (!clipper.Execute(ClipperLib::ctUnion, tree, ClipperLib::pftNonZero, ClipperLib::pftNonZero)) continue;
+    for (ClipperLib::PolyNode* node = tree.GetFirst(); node; node = node->GetNext()) {
+      if (!node->IsHole()) continue;
+      ClipperLib::Path hole = node->Contour;
+      ClipperLib::CleanPolygon(hole, 1.415);
+      if (hole.size() < 3) continue;
+      double perimeter = 0;
+      for (size_t i = 0; i < hole.size(); ++i) {
+        const auto &a = hole[i], &c = hole[(i + 1) % hole.size()];
+        perimeter += std::hypot(double(c.X - a.X), double(c.Y - a.Y));
+      }
+      const double area = std::abs(ClipperLib::Area(hole));  // in units^2
+      if (!(area > 64 * perimeter)) continue;                 // a sliver: narrower than ~8 eps
+      // An opening is mostly bounded by the plane's own faces (a door: jambs' wall on three sides, the threshold
+      // on one); a region fenced by other faces' edges only (walls' edges around a table top's plane) is not.
+      if (!ClipperLib::Orientation(hole)) ClipperLib::ReversePath(hole);
+      ClipperLib::ClipperOffset grow;
+      grow.AddPath(hole, ClipperLib::jtMiter, ClipperLib::etClosedPolygon);
+      ring.clear();
+      grow.Execute(ring, 8.0);  // half an eps
+      clipper.Clear();
+      clipper.AddPaths(ring, ClipperLib::ptSubject, true);
+      clipper.AddPath(hole, ClipperLib::ptClip, true);
+      clipper.Execute(ClipperLib::ctDifference, ring, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+      clipper.Clear();
+      clipper.AddPaths(ring, ClipperLib::ptSubject, true);
+      clipper.AddPaths(own, ClipperLib::ptClip, true);
+      clipper.Execute(ClipperLib::ctIntersection, cover, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+      double ring_area = 0, cover_area = 0;
+      for (const auto& r : ring) ring_area += ClipperLib::Area(r);
+      for (const auto& r : cover) cover_area += ClipperLib::Area(r);
+      if (!(cover_area >= 0.5 * ring_area)) continue;
+      std::vector<Vec3> poly;
+      poly.reserve(hole.size());
+      for (const auto& pt : hole) {
+        Vec3 c = o + (double(pt.X) * unit) * u + (double(pt.Y) * unit) * v;
+        c += (off - nrm.dot(c)) * nrm;  // exactly in the plane
+        poly.push_back(c);
+      }
+      // A hole the ear clipping cannot take (left open: its rooms stay one cell, which only refuses less).
+      if (mesh::triangulate_polygon(poly, nrm).empty()) continue;
+      out.push_back(std::move(poly));
+    }
+  }
+  return out;
+}
+
+}  // namespace lambert::formfactor::detail
