@@ -201,6 +201,7 @@ formfactor::HierarchyOptions hierarchy_options(const CommonOptions& o, const mes
                                                const ColorField* emission = nullptr) {
   formfactor::HierarchyOptions h = o.hierarchy;
   h.enclosures = o.enclosures == "on";
+  h.portals = o.portals == "on";
   const double rho_max = max_reflectance(scene.materials);
   h.entry_tolerance = o.ff.tolerance;
   h.max_reflectance = rho_max;

@@ -31,6 +31,7 @@ struct CommonOptions {
   solver::Options solve;             // --tolerance (solve), --max-iterations
   refine::AdaptiveOptions adaptive;  // --adaptive-tol, --adaptive-rounds
   std::string enclosures = "on";     // --enclosures: on | off (Options and HierarchyOptions::enclosures)
+  std::string portals = "on";        // --portals: on | off (HierarchyOptions::portals)
   std::string op = "auto";           // --operator: dense | hierarchical | auto (commands.cpp: choose_operator)
   formfactor::HierarchyOptions hierarchy;  // --hierarchy-tolerance
   double min_factor = 0;             // formfactors --min-factor: entries below are not written

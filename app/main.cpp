@@ -131,6 +131,13 @@ int main(int argc, char** argv) {
                     "different cells to zero without rays (both operators), or ray-test them (off)")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
+    sub->add_option("--portals", common.portals,
+                    "Hierarchical operator, with --enclosures on: close the openings (holes in the patches of a "
+                    "plane: doors, open windows) by virtual portals, so the closed surfaces split into rooms, and "
+                    "refuse node pairs in different rooms whose shaft meets no portal between them without rays "
+                    "(off: apartments only)")
+        ->check(CLI::IsMember({"on", "off"}))
+        ->capture_default_str();
   };
 
   // solve
