@@ -2,7 +2,7 @@
 //   cube N     closed unit cube, N x N quads per face (inward), rho = 0.5, the top face (+z) emits Le = 1
 //   obj PATH   an OBJ scene (materials from its MTL), e.g. ../shared/models/udales_shape.obj, closed by a
 //              large emitting sky box (Le = 1, rho = 0) around it when --sky is given
-// Usage: bench_hierarchy [--dense] [--two-pass] [--tolerance T] [--threads K] cube N | obj PATH [--sky]
+// Usage: bench_hierarchy [--dense] [--two-pass] [--no-portals] [--tolerance T] [--threads K] cube N | obj PATH [--sky]
 // --two-pass: brightness for the refinement from a first solve at 10x the tolerance (an experiment; the CLI
 // uses the a-priori bound Le + rho max Le / (1 - rho_max)).
 // The dense reference (--dense) is assembled at the default tolerance and solved to 1e-10; the error is
@@ -96,7 +96,7 @@ Problem obj(const std::string& path, bool sky) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool dense = false, sky = false, two_pass = false;
+  bool dense = false, sky = false, two_pass = false, portals = true;
   double tol = 1e-3, entry_tol = 0;
   int threads = 0;
   std::string kind, arg;
@@ -104,6 +104,7 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[k], "--dense")) dense = true;
     else if (!std::strcmp(argv[k], "--sky")) sky = true;
     else if (!std::strcmp(argv[k], "--two-pass")) two_pass = true;
+    else if (!std::strcmp(argv[k], "--no-portals")) portals = false;
     else if (!std::strcmp(argv[k], "--tolerance") && k + 1 < argc) tol = std::atof(argv[++k]);
     else if (!std::strcmp(argv[k], "--threads") && k + 1 < argc) threads = std::atoi(argv[++k]);
     else if (!std::strcmp(argv[k], "--entry-tolerance") && k + 1 < argc) entry_tol = std::atof(argv[++k]);
@@ -111,7 +112,7 @@ int main(int argc, char** argv) {
     else arg = argv[k];
   }
   if (kind.empty() || arg.empty()) {
-    std::fprintf(stderr, "usage: bench_hierarchy [--dense] [--tolerance T] [--entry-tolerance E] [--threads K] cube N | obj PATH "
+    std::fprintf(stderr, "usage: bench_hierarchy [--dense] [--no-portals] [--tolerance T] [--entry-tolerance E] [--threads K] cube N | obj PATH "
                  "[--sky]\n");
     return 1;
   }
@@ -129,6 +130,7 @@ int main(int argc, char** argv) {
   ho.tolerance = tol;
   ho.max_reflectance = rho_max;
   ho.entry_tolerance = entry_tol;
+  ho.portals = portals;
   formfactor::HierarchyStats hs;
   if (two_pass) {
     // Brightness from a first solve at 10x the tolerance: links from what turned out dark are accepted coarser.

@@ -54,8 +54,8 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
     }
   }
   ClipperLib::Clipper clipper;
-  ClipperLib::PolyTree tree;
-  ClipperLib::Paths own, all, ring, cover;
+  ClipperLib::Paths own, all, merged, ring, cover, near;
+  std::vector<ClipperLib::IntRect> own_box;
   for (int k = 0; k < planes; ++k) {
     const int b = count[size_t(k)], e = count[size_t(k) + 1];
     // The plane's frame: the first patch's normal (made canonical as plane_ids does), origin at its centroid.
@@ -84,6 +84,12 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
       own.push_back(std::move(path));
     }
     if (!fits || own.empty()) continue;
+    own_box.clear();
+    for (const ClipperLib::Path& q : own) {
+      ClipperLib::IntRect r{q[0].X, q[0].Y, q[0].X, q[0].Y};
+      for (const auto& pt : q) r = {std::min(r.left, pt.X), std::min(r.top, pt.Y), std::max(r.right, pt.X), std::max(r.bottom, pt.Y)};
+      own_box.push_back(r);
+    }
     all = own;
     if (nrm[big] > 1 - 1e-9) {  // axis-aligned: the other faces' edges in this plane, as strips eps / 4 wide
       const double c0 = o[big];
@@ -108,14 +114,15 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
       }
     }
     if (!fits || all.size() < 2) continue;  // one simple polygon has no hole
+    // Paths, not a PolyTree, and not strictly simple: both make Clipper 6 quadratic in the polygons that share
+    // edges (a ground of 6,000 triangles took minutes). A hole is a path of negative orientation (inputs positive,
+    // non-zero fill); one that touches itself is left out below (the ear clipping refuses it).
     clipper.Clear();
-    clipper.StrictlySimple(true);  // no hole touching itself at a corner
     clipper.AddPaths(all, ClipperLib::ptSubject, true);
-    tree.Clear();
-    if (!clipper.Execute(ClipperLib::ctUnion, tree, ClipperLib::pftNonZero, ClipperLib::pftNonZero)) continue;
-    for (ClipperLib::PolyNode* node = tree.GetFirst(); node; node = node->GetNext()) {
-      if (!node->IsHole()) continue;
-      ClipperLib::Path hole = node->Contour;
+    if (!clipper.Execute(ClipperLib::ctUnion, merged, ClipperLib::pftNonZero, ClipperLib::pftNonZero)) continue;
+    for (const ClipperLib::Path& contour : merged) {
+      if (ClipperLib::Orientation(contour)) continue;
+      ClipperLib::Path hole = contour;
       ClipperLib::CleanPolygon(hole, 1.415);
       if (hole.size() < 3) continue;
       double perimeter = 0;
@@ -136,9 +143,18 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
       clipper.AddPaths(ring, ClipperLib::ptSubject, true);
       clipper.AddPath(hole, ClipperLib::ptClip, true);
       clipper.Execute(ClipperLib::ctDifference, ring, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+      // Only the plane's patches near the hole (a ground of thousands of triangles around a building's footprint).
+      ClipperLib::IntRect rb{hole[0].X, hole[0].Y, hole[0].X, hole[0].Y};
+      for (const auto& pt : hole) rb = {std::min(rb.left, pt.X), std::min(rb.top, pt.Y), std::max(rb.right, pt.X), std::max(rb.bottom, pt.Y)};
+      rb = {rb.left - 16, rb.top - 16, rb.right + 16, rb.bottom + 16};  // the ring is 8 units wide
+      near.clear();
+      for (size_t m = 0; m < own.size(); ++m)
+        if (own_box[m].left <= rb.right && rb.left <= own_box[m].right && own_box[m].top <= rb.bottom &&
+            rb.top <= own_box[m].bottom)
+          near.push_back(own[m]);
       clipper.Clear();
       clipper.AddPaths(ring, ClipperLib::ptSubject, true);
-      clipper.AddPaths(own, ClipperLib::ptClip, true);
+      clipper.AddPaths(near, ClipperLib::ptClip, true);
       clipper.Execute(ClipperLib::ctIntersection, cover, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
       double ring_area = 0, cover_area = 0;
       for (const auto& r : ring) ring_area += ClipperLib::Area(r);
