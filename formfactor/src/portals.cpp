@@ -41,8 +41,7 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
   // plane along an edge (a threshold under a door, a floor's edge along a wall's base) close the openings that
   // reach the plane's border, as a door reaches the floor.
   struct Edge {
-    int patch;
-    Vec3 a, b;
+    int patch, corner;  // from corner to the next corner of the patch
   };
   std::array<std::unordered_map<long long, std::vector<Edge>>, 3> in_plane;
   for (int p = 0; p < n; ++p) {
@@ -50,7 +49,7 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
     for (size_t i = 0; i < poly.size(); ++i) {
       const Vec3 &a = poly[i], &b = poly[(i + 1) % poly.size()];
       for (int k = 0; k < 3; ++k)
-        if (std::abs(a[k] - b[k]) <= eps) in_plane[size_t(k)][std::llround(a[k] / eps)].push_back({p, a, b});
+        if (std::abs(a[k] - b[k]) <= eps) in_plane[size_t(k)][std::llround(a[k] / eps)].push_back({p, int(i)});
     }
   }
   ClipperLib::Clipper clipper;
@@ -98,8 +97,10 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
         const auto it = in_plane[size_t(big)].find(bb);
         if (it == in_plane[size_t(big)].end()) continue;
         for (const Edge& ed : it->second) {
-          if (plane[size_t(ed.patch)] == k || std::abs(ed.a[big] - c0) > eps || std::abs(ed.b[big] - c0) > eps) continue;
-          const ClipperLib::IntPoint pa = snap(ed.a), pb = snap(ed.b);
+          const auto poly = g.polygon(ed.patch);
+          const Vec3 &ea = poly[size_t(ed.corner)], &eb = poly[(size_t(ed.corner) + 1) % poly.size()];
+          if (plane[size_t(ed.patch)] == k || std::abs(ea[big] - c0) > eps || std::abs(eb[big] - c0) > eps) continue;
+          const ClipperLib::IntPoint pa = snap(ea), pb = snap(eb);
           const double dx = double(pb.X - pa.X), dy = double(pb.Y - pa.Y), len = std::hypot(dx, dy);
           if (!fits || !(len > 0)) continue;
           const double tx = 2 * dx / len, ty = 2 * dy / len;  // 2 units (eps / 8) along and across

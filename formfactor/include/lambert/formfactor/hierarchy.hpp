@@ -28,6 +28,10 @@
 // brightness is within the link tolerance (rooms behind walls), its possible transmittance counted in the
 // admitted error. The rays stop as soon as the outcome is decided (the same links as reading all of them).
 // The one visibility call is link_visibility() in src/hierarchy.cpp (rays today; exact visibility can replace it).
+// Before any of that, node pairs whose patches face different cells of the closed surfaces (src/enclosures.hpp) are
+// refused, and so are node pairs in different rooms whose shaft meets no portal of a surface between the rooms
+// (src/portals.hpp: each opening, a hole in the union of one plane's patches, closed by a virtual portal; a segment
+// from inside a closed surface to outside it crosses the surface, and only a portal lets it through).
 //
 // Error admitted. Each link adds its error estimate (F units) to its receivers' rows (pushed down the tree),
 // the patch pairs their integration bounds: HierarchyStats::row_error[_max]; ::radiance_error_max the same
