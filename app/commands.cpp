@@ -98,6 +98,7 @@ double max_reflectance(const std::vector<mesh::Material>& materials) {
 formfactor::Options ff_options(const CommonOptions& o, double rho_max, Progress* progress) {
   formfactor::Options f = o.ff;
   f.enclosures = o.enclosures == "on";
+  f.portals = o.portals == "on";
   f.max_reflectance = rho_max;
   f.visibility = !o.no_visibility;
   formfactor::parse_rule(o.ff_rule, f.rule, f.order);
@@ -458,13 +459,16 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
 
 std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* check) {
   std::string out = fmt::format(
-      "  pairs        {} ({} culled by orientation, {} proven unoccluded, {}{}{} ray-tested), rays {}\n"
+      "  pairs        {} ({} culled by orientation, {} proven unoccluded, {}{}{}{} ray-tested), rays {}\n"
       "  form factors {} rule, tolerance {:.1e} per entry; row sum min/mean/max {:.6f} / {:.6f} / {:.6f}\n",
       s.pairs_total, s.pairs_orientation_culled, s.pairs_shaft_culled,
       s.pairs_cell_hidden ? fmt::format("{} facing different cells ({} closed surfaces, {} cells), ", s.pairs_cell_hidden,
                                         s.enclosures, s.cells)
                           : "",
       s.pairs_plane_hidden ? fmt::format("{} proven hidden by a wall or slab, ", s.pairs_plane_hidden) : "",
+      s.pairs_portal_hidden ? fmt::format("{} in different rooms with no portal between them ({} openings, {} rooms), ",
+                                          s.pairs_portal_hidden, s.portals, s.rooms)
+                            : "",
       s.pairs_ray_tested, s.rays_cast, s.rule,
       s.tolerance, s.row_sum_min, s.row_sum_mean, s.row_sum_max);
   const long long exact = s.pairs_exact_clear + s.pairs_exact_hidden + s.pairs_exact_integrated;

@@ -11,6 +11,8 @@
 #include <random>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "../formfactor/src/enclosures.hpp"
 #include "../formfactor/src/portals.hpp"
 #include "lambert/formfactor/assemble.hpp"
@@ -24,6 +26,7 @@ namespace {
 using fftest::rect;
 using Polys = std::vector<std::vector<Vec3>>;
 namespace fd = formfactor::detail;
+constexpr double kPi = 3.14159265358979323846;
 
 // The plane `axis` = c as a grid of rectangles between consecutive breaks along its two in-plane axes
 // ((axis + 1) % 3, (axis + 2) % 3, as rect), without the cells for which skip(a0, a1, b0, b1) holds.
@@ -94,20 +97,32 @@ std::string describe(const Polys& openings) {
 // wall has one opening of the door's area (0.4 x 0.7), in that side's plane; nothing else is an opening (the gaps
 // between the two rooms' floors and walls are open at the scene's border).
 TEST(Portals, DoorReachingTheFloorIsAnOpeningOnEachSideOfTheWall) {
-  const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(two_rooms_and_a_door());
-  const Polys open = fd::find_openings(g, eps_of(g));
-  ASSERT_EQ(open.size(), 2u) << "openings:" << describe(open);
-  std::vector<double> xs;
-  for (const auto& o : open) {
-    EXPECT_NEAR(area_of(o), 0.28, 0.28 * 1e-5) << "opening:" << describe({o});
-    double lo = INFINITY, hi = -INFINITY;
-    for (const Vec3& v : o) lo = std::min(lo, v.x()), hi = std::max(hi, v.x());
-    EXPECT_EQ(lo, hi) << "opening not in an x plane:" << describe({o});
-    xs.push_back(lo);
+  // As built (axis-aligned, at the origin), then turned 30 degrees about the vertical and moved 1e6 m (a building
+  // in GIS coordinates): the same openings.
+  for (int placed = 0; placed < 2; ++placed) {
+    const Eigen::Matrix3d R = placed ? Eigen::AngleAxisd(kPi / 6, Vec3::UnitZ()).toRotationMatrix() : Eigen::Matrix3d::Identity();
+    const Vec3 shift = placed ? Vec3(1e6, -2e6, 30) : Vec3::Zero();
+    Polys polys = two_rooms_and_a_door();
+    for (auto& poly : polys)
+      for (Vec3& v : poly) v = R * v + shift;
+    const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(polys);
+    const Polys open = fd::find_openings(g, eps_of(g));
+    ASSERT_EQ(open.size(), 2u) << (placed ? "turned and moved" : "as built") << ", openings:" << describe(open);
+    std::vector<double> xs;
+    for (const auto& o : open) {
+      EXPECT_NEAR(area_of(o), 0.28, 0.28 * 1e-5) << "opening:" << describe({o});
+      double lo = INFINITY, hi = -INFINITY;  // the x of the unturned scene
+      for (const Vec3& v : o) {
+        const double x = (R.transpose() * (v - shift)).x();
+        lo = std::min(lo, x), hi = std::max(hi, x);
+      }
+      EXPECT_LT(hi - lo, 1e-6) << "opening not in an x plane:" << describe({o});
+      xs.push_back(lo);
+    }
+    std::sort(xs.begin(), xs.end());
+    EXPECT_NEAR(xs[0], 2.0, 1e-6);
+    EXPECT_NEAR(xs[1], 2.1, 1e-6);
   }
-  std::sort(xs.begin(), xs.end());
-  EXPECT_NEAR(xs[0], 2.0, 1e-12);
-  EXPECT_NEAR(xs[1], 2.1, 1e-12);
 }
 
 // A window (a hole in a wall) is an opening; a table top's plane, where the walls have edges all round, is not:
@@ -207,6 +222,38 @@ TEST(Portals, RoomsJoinedByADoorExchangeLightOnlyThroughIt) {
               admitted);
   EXPECT_GT(dense, 1e-3) << "the far wall must see room A's ceiling through the door";
   EXPECT_NEAR(hier, dense, admitted) << "light through the door lost or changed";
+}
+
+// The dense assembly with portals against the same without: a refused pair is hidden, so the rays (or the exact
+// path) of the run without portals give it exactly 0 too, and every other pair takes the same rays (seeded by the
+// pair): the two matrices are equal entry by entry, bit for bit, with rays and with exact visibility.
+TEST(Portals, DenseWithPortalsEqualsWithoutBitForBit) {
+  const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(two_rooms_and_a_door());
+  const int n = g.size();
+  for (const auto method : {formfactor::VisibilityMethod::Rays, formfactor::VisibilityMethod::Exact}) {
+    formfactor::Stats st[2];
+    std::vector<formfactor::DenseMatrixOperator> D;
+    for (int on = 0; on < 2; ++on) {
+      formfactor::Options fo;
+      fo.visibility_method = method;
+      fo.portals = on == 1;
+      D.push_back(formfactor::assemble(g, fo, &st[on]));
+    }
+    const char* name = method == formfactor::VisibilityMethod::Rays ? "rays" : "exact";
+    std::printf("%s: portals on: %lld openings, %lld rooms, %lld pairs refused; ray-tested %lld against %lld\n", name,
+                st[1].portals, st[1].rooms, st[1].pairs_portal_hidden, st[1].pairs_ray_tested, st[0].pairs_ray_tested);
+    EXPECT_EQ(st[1].portals, 2) << name;
+    EXPECT_GT(st[1].pairs_portal_hidden, 0) << name << ": nothing refused, the test exercises nothing";
+    EXPECT_EQ(st[0].pairs_portal_hidden, 0) << name;
+    int differ = 0;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        if (D[1].matrix()(i, j) != D[0].matrix()(i, j) && ++differ <= 5)
+          ADD_FAILURE() << name << ": F(" << i << ", " << j << ") (centroids " << g.centroid[size_t(i)].transpose()
+                        << " and " << g.centroid[size_t(j)].transpose() << ") is " << D[1].matrix()(i, j)
+                        << " with portals, " << D[0].matrix()(i, j) << " without";
+    EXPECT_EQ(differ, 0) << name;
+  }
 }
 
 }  // namespace

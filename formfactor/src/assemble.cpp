@@ -115,6 +115,11 @@ DenseMatrixOperator Assembler::run() {
         st_.cells = enc.cells;
         st_.cell_unknown = enc.unknown;
         if (enc.surfaces > 0) cell_ = enc.cell;
+        if (o_.portals) {
+          rooms_ = find_rooms(g_, kEnclosureEps * scale_);
+          st_.portals = (long long)rooms_.portals.size();
+          st_.rooms = rooms_.rooms;
+        }
       }
       if (o_.visibility_method != VisibilityMethod::Rays) {
         merged_ = merge_coplanar_occluders(g_, occ, scale_);

@@ -14,6 +14,7 @@
 #include "sampling.hpp"
 #include "exact_visibility.hpp"
 #include "separation.hpp"
+#include "portals.hpp"
 #include "shaft.hpp"
 
 namespace lambert::formfactor::detail {
@@ -45,6 +46,7 @@ struct Counters {
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   long long plane_hidden = 0, plane_tests = 0;  // pairs proven hidden by a separating plane; blocks and pairs tried
   long long cell_hidden = 0;                    // pairs facing different cells (enclosures.hpp)
+  long long portal_hidden = 0;                  // pairs in different rooms, no portal between them (portals.hpp)
   double plane_seconds = 0;
   double tile_seconds = 0, visibility_seconds = 0;  // thread time in tiles, and in their visibility step
   double exact_seconds = 0, rays_seconds = 0;       // thread time of the two visibility paths
@@ -98,6 +100,7 @@ class Assembler {
   MergedOccluders merged_;            // coplanar touching occluders merged (exact path)
   std::vector<int> plane_of_;         // per patch: its plane among the occluders (separation.hpp), or -1
   std::vector<int> cell_;             // per patch: its cell (enclosures.hpp), -1 unknown; empty: no closed surface
+  Rooms rooms_;                       // the rooms with the openings closed by portals (portals.hpp), or empty
   std::vector<std::vector<int>> plane_members_;  // per plane: its occluders
   std::vector<Vec3> pbox_lo_, pbox_hi_;          // per patch: bounding box
   OccluderTree tree_;

@@ -311,8 +311,7 @@ class Refiner {
   // occ: the potential occluders (potential_occluders); cell: per patch, the cells of the closed surfaces
   // (enclosures.hpp), or empty.
   // rooms: the closed surfaces with the openings closed by portals (portals.hpp), or null.
-  void setup(const std::vector<int>& occ, std::span<const int> cell, const detail::Enclosures* rooms = nullptr,
-             const std::vector<std::vector<Vec3>>* portals = nullptr) {
+  void setup(const std::vector<int>& occ, std::span<const int> cell, const detail::Rooms* rooms = nullptr) {
     const int n = d_.n;
     // Brightness per node (max over its patches), relative to the brightest.
     lmax_.assign(d_.nodes.size(), 1.0);
@@ -355,24 +354,14 @@ class Refiner {
         node_cell_[k] = nd.leaf() ? cell[d_.perm[nd.begin]]
                                   : (node_cell_[nd.left] == node_cell_[nd.right] ? node_cell_[nd.left] : -1);
       }
-    // Rooms (cells with the openings closed) per node, and each surface's portals.
+    // Rooms (cells with the openings closed) per node.
     node_room_.assign(d_.nodes.size(), -1);
-    if (occlusion_ && rooms && portals && rooms->surfaces > 0) {
+    if (occlusion_ && rooms && !rooms->empty()) {
       rooms_ = rooms;
       for (int k = int(d_.nodes.size()) - 1; k >= 0; --k) {
         const HNode& nd = d_.nodes[k];
         node_room_[k] = nd.leaf() ? rooms->cell[size_t(d_.perm[nd.begin])]
                                   : (node_room_[nd.left] == node_room_[nd.right] ? node_room_[nd.left] : -1);
-      }
-      portal_poly_ = portals;
-      portal_box_.resize(portals->size());
-      surface_portals_.assign(size_t(rooms->surfaces), {});
-      for (size_t q = 0; q < portals->size(); ++q) {
-        for (const Vec3& v : (*portals)[q]) portal_box_[q].add(v);
-        const auto& sides = rooms->surfaces_of[size_t(n) + q];
-        for (int side = 0; side < 2; ++side)
-          if (sides[side] >= 0 && (side == 0 || sides[1] != sides[0]))
-            surface_portals_[size_t(sides[side])].push_back(int(q));
       }
     }
   }
@@ -380,35 +369,16 @@ class Refiner {
   void run() { refine(0, 0); }
 
   // Nodes in different rooms: light between them crosses every surface that holds one and not the other, and
-  // only through its portals (its other faces are opaque). False when the shaft between the nodes meets no portal
-  // of one of those surfaces: nothing passes.
+  // only through its portals (its other faces are opaque). False when the shaft between the nodes (as
+  // link_visibility's) meets no portal of one of those surfaces: nothing passes.
   bool portal_path(const HNode& A, const HNode& B, int ra, int rb) const {
-    const std::vector<int>& sa = rooms_->cell_surfaces[size_t(ra)];
-    const std::vector<int>& sb = rooms_->cell_surfaces[size_t(rb)];
     detail::Shaft sh = detail::make_shaft(A.box, B.box);
     sh.ni = A.flat ? A.axis : Vec3::Zero();
     sh.oi = A.flat ? A.axis.dot(A.c) + A.slab_lo : -INFINITY;
     sh.nj = B.flat ? B.axis : Vec3::Zero();
     sh.oj = B.flat ? B.axis.dot(B.c) + B.slab_lo : -INFINITY;
     sh.eps = d_.P.scene_eps;
-    auto through = [&](int S) {
-      for (int q : surface_portals_[size_t(S)])
-        if (detail::polygon_may_meet(sh, portal_box_[size_t(q)], (*portal_poly_)[size_t(q)])) return true;
-      return false;
-    };
-    // The symmetric difference of the two sorted surface lists.
-    size_t i = 0, j = 0;
-    while (i < sa.size() || j < sb.size()) {
-      int S;
-      if (j == sb.size() || (i < sa.size() && sa[i] < sb[j])) S = sa[i++];
-      else if (i == sa.size() || sb[j] < sa[i]) S = sb[j++];
-      else {
-        ++i, ++j;
-        continue;
-      }
-      if (!through(S)) return false;
-    }
-    return true;
+    return rooms_->path(sh, ra, rb);
   }
 
   tbb::enumerable_thread_specific<Local> locals;
@@ -823,10 +793,7 @@ class Refiner {
  private:
   std::vector<double> lmax_, cum_;
   std::vector<int> node_cell_, node_room_;
-  const detail::Enclosures* rooms_ = nullptr;
-  const std::vector<std::vector<Vec3>>* portal_poly_ = nullptr;
-  std::vector<Box> portal_box_;
-  std::vector<std::vector<int>> surface_portals_;
+  const detail::Rooms* rooms_ = nullptr;
   std::vector<Box> pbox_;
   double lref_ = 1;
   std::shared_ptr<const Visibility> caster_;
@@ -1006,8 +973,8 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     d.P = detail::prepare(g, 1);
     // The closed surfaces' cells, first: the tree keeps cells apart where it can.
     std::vector<int> occ;
-    detail::Enclosures enc, rooms;
-    std::vector<std::vector<Vec3>> portals;
+    detail::Enclosures enc;
+    detail::Rooms rooms;
     if (o.visibility && n > 1) {
       occ = potential_occluders(g);
       if (!occ.empty() && o.enclosures) {
@@ -1018,27 +985,17 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
         st.cells = enc.cells;
         st.cell_unknown = enc.unknown;
         st.seconds_enclosures = enc.seconds;
-        if (o.portals) {
-          // The openings closed by portals: the closed surfaces again, now of rooms.
-          const auto t_portals = Clock::now();
+        if (o.portals) {  // the openings closed by portals: the closed surfaces again, now of rooms
           Eigen::AlignedBox3d box;
           for (const Vec3& v : g.points) box.extend(v);
-          const double eps = detail::kEnclosureEps * box.diagonal().norm();
-          portals = detail::find_openings(g, eps);
-          if (!portals.empty()) {
-            std::vector<std::vector<Vec3>> polys(size_t(n) + portals.size());
-            for (int p = 0; p < n; ++p) polys[size_t(p)].assign(g.polygon(p).begin(), g.polygon(p).end());
-            for (size_t q = 0; q < portals.size(); ++q) polys[size_t(n) + q] = portals[q];
-            rooms = detail::find_enclosures(mesh::PatchGeometry::from_polygons(polys), eps);
-            rooms.cell.resize(size_t(n));
-          }
-          st.portals = (long long)portals.size();
-          st.room_cells = rooms.cells;
-          st.seconds_portals = since(t_portals);
+          rooms = detail::find_rooms(g, detail::kEnclosureEps * box.diagonal().norm());
+          st.portals = (long long)rooms.portals.size();
+          st.room_cells = rooms.rooms;
+          st.seconds_portals = rooms.seconds;
         }
       }
     }
-    const std::span<const int> cells = rooms.surfaces > 0 ? std::span<const int>(rooms.cell)
+    const std::span<const int> cells = !rooms.empty()   ? std::span<const int>(rooms.cell)
                                        : enc.surfaces > 0  ? std::span<const int>(enc.cell)
                                                            : std::span<const int>();
     d.perm.resize(n);
@@ -1060,7 +1017,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     const auto t_links = Clock::now();
     Refiner rf(g, o, d, etol, sys.bytes);
     rf.link_tol_ = st.link_tolerance;
-    rf.setup(occ, enc.surfaces > 0 ? std::span<const int>(enc.cell) : std::span<const int>(), &rooms, &portals);
+    rf.setup(occ, enc.surfaces > 0 ? std::span<const int>(enc.cell) : std::span<const int>(), &rooms);
     rf.run();
     // The records into the stored rows, thread by thread (each thread's records freed as soon as they are
     // placed: no merged copy), then each row sorted by source: the stored operator does not depend on the thread

@@ -21,6 +21,7 @@ void to_json(nlohmann::json& j, const Stats& s) {
   j["pairs_plane_hidden"] = s.pairs_plane_hidden;
   j["enclosures"] = {{"surfaces", s.enclosures}, {"cells", s.cells}, {"patches_of_unknown_cell", s.cell_unknown},
                      {"pairs_refused", s.pairs_cell_hidden}};
+  j["portals"] = {{"openings", s.portals}, {"rooms", s.rooms}, {"pairs_refused", s.pairs_portal_hidden}};
   j["plane_tests"] = s.plane_tests;
   j["pairs_exact_integrated"] = s.pairs_exact_integrated;
   j["pairs_exact_over_tolerance"] = s.pairs_exact_over_tolerance;

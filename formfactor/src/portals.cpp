@@ -1,13 +1,17 @@
 // Openings as portal polygons (portals.hpp).
 #include "portals.hpp"
 
+#include "enclosures.hpp"
+
 #include <polyclipping/clipper.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <chrono>
 #include <numeric>
 #include <unordered_map>
 #include <array>
+#include <map>
 
 namespace lambert::formfactor::detail {
 
@@ -19,11 +23,43 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
   for (const Vec3& v : g.points) box.extend(v);
   const double scale = box.diagonal().norm();
   if (!(scale > 0)) return out;
-  std::vector<int> ids(static_cast<size_t>(n));
-  std::iota(ids.begin(), ids.end(), 0);
-  const std::vector<int> plane = mesh::plane_ids(g, ids, scale);
+  // Planes: canonical normals (largest component positive) in buckets of 1e-6, then offsets from the scene's centre
+  // (a model in GIS coordinates: offsets from the origin would carry its normals' rounding times 1e6 m) chained
+  // where consecutive ones lie within eps / 4. Planes numbered in order of their first patch: deterministic.
+  const Vec3 centre = box.center();
+  std::vector<Vec3> canon(static_cast<size_t>(n));
+  std::vector<std::array<long long, 3>> bucket(static_cast<size_t>(n));
+  std::vector<double> offset(static_cast<size_t>(n));
+  for (int p = 0; p < n; ++p) {
+    Vec3 nrm = g.normal[p];
+    int big = 0;
+    for (int c = 1; c < 3; ++c)
+      if (std::abs(nrm[c]) > std::abs(nrm[big])) big = c;
+    if (nrm[big] < 0) nrm = -nrm;
+    canon[size_t(p)] = nrm;
+    bucket[size_t(p)] = {std::llround(nrm.x() * 1e6), std::llround(nrm.y() * 1e6), std::llround(nrm.z() * 1e6)};
+    offset[size_t(p)] = nrm.dot(g.centroid[p] - centre);
+  }
+  std::vector<int> order(static_cast<size_t>(n));
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    if (bucket[size_t(a)] != bucket[size_t(b)]) return bucket[size_t(a)] < bucket[size_t(b)];
+    if (offset[size_t(a)] != offset[size_t(b)]) return offset[size_t(a)] < offset[size_t(b)];
+    return a < b;
+  });
+  std::vector<int> chain(static_cast<size_t>(n));
+  for (size_t k = 0; k < order.size(); ++k) {
+    const int p = order[k], q = k > 0 ? order[k - 1] : -1;
+    const bool same = q >= 0 && bucket[size_t(p)] == bucket[size_t(q)] && offset[size_t(p)] - offset[size_t(q)] <= eps / 4;
+    chain[size_t(p)] = same ? chain[size_t(q)] : p;  // the chain's first patch in sorted order
+  }
+  std::vector<int> plane(static_cast<size_t>(n), -1), id_of(static_cast<size_t>(n), -1);
   int planes = 0;
-  for (int id : plane) planes = std::max(planes, id + 1);
+  for (int p = 0; p < n; ++p) {
+    int& id = id_of[size_t(chain[size_t(p)])];
+    if (id < 0) id = planes++;
+    plane[size_t(p)] = id;
+  }
   // Patches per plane, in patch order.
   std::vector<int> count(size_t(planes) + 1, 0);
   for (int p = 0; p < n; ++p) ++count[size_t(plane[p]) + 1];
@@ -37,19 +73,44 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
   // Clipper units: eps / 16, so that snapped corners stay within eps / 32 of the patches' (enclosures.hpp joins
   // edges within eps).
   const double unit = eps / 16, inv = 1.0 / unit;
-  // Edges lying in an axis-aligned plane, by axis and coordinate (bins of eps): the traces of faces that meet a
-  // plane along an edge (a threshold under a door, a floor's edge along a wall's base) close the openings that
-  // reach the plane's border, as a door reaches the floor.
+  // The planes' normals: their first patch's.
+  std::vector<Vec3> plane_normal(static_cast<size_t>(planes));
+  for (int k = 0; k < planes; ++k) plane_normal[size_t(k)] = canon[size_t(members[size_t(count[size_t(k)])])];
+  // Edges lying in a plane, by the plane's normal direction and offset (bins of eps): the traces of faces that meet
+  // a plane along an edge (a threshold under a door, a floor's edge along a wall's base) close the openings that
+  // reach the plane's border, as a door reaches the floor. The kMaxDirections directions with the most patches (an
+  // architectural model has a handful; a rotated one the same handful).
+  constexpr int kMaxDirections = 32;
+  std::vector<int> direction_of(static_cast<size_t>(planes), -1);
+  std::vector<Vec3> directions;
+  {
+    std::map<std::array<long long, 3>, std::pair<int, int>> key;  // quantised normal -> (patches, first plane)
+    for (int k = 0; k < planes; ++k) {
+      const Vec3& nk = plane_normal[size_t(k)];
+      auto& e = key.try_emplace({std::llround(nk.x() * 1e6), std::llround(nk.y() * 1e6), std::llround(nk.z() * 1e6)},
+                                0, k).first->second;
+      e.first += count[size_t(k) + 1] - count[size_t(k)];
+    }
+    std::vector<std::pair<int, int>> by_count;  // (-patches, first plane): deterministic order
+    for (const auto& [q, e] : key) by_count.push_back({-e.first, e.second});
+    std::sort(by_count.begin(), by_count.end());
+    if (by_count.size() > size_t(kMaxDirections)) by_count.resize(size_t(kMaxDirections));
+    for (const auto& [c, k] : by_count) directions.push_back(plane_normal[size_t(k)]);
+    for (int k = 0; k < planes; ++k)
+      for (size_t d = 0; d < directions.size(); ++d)
+        if ((plane_normal[size_t(k)] - directions[d]).cwiseAbs().maxCoeff() < 2e-6) direction_of[size_t(k)] = int(d);
+  }
   struct Edge {
     int patch, corner;  // from corner to the next corner of the patch
   };
-  std::array<std::unordered_map<long long, std::vector<Edge>>, 3> in_plane;
+  std::vector<std::unordered_map<long long, std::vector<Edge>>> in_plane(directions.size());
   for (int p = 0; p < n; ++p) {
     const auto poly = g.polygon(p);
     for (size_t i = 0; i < poly.size(); ++i) {
       const Vec3 &a = poly[i], &b = poly[(i + 1) % poly.size()];
-      for (int k = 0; k < 3; ++k)
-        if (std::abs(a[k] - b[k]) <= eps) in_plane[size_t(k)][std::llround(a[k] / eps)].push_back({p, int(i)});
+      for (size_t d = 0; d < directions.size(); ++d)
+        if (std::abs(directions[d].dot(b - a)) <= eps)
+          in_plane[d][std::llround(directions[d].dot(a - centre) / eps)].push_back({p, int(i)});
     }
   }
   ClipperLib::Clipper clipper;
@@ -67,7 +128,6 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
     const Vec3 u = (std::abs(nrm.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(nrm).normalized();
     const Vec3 v = nrm.cross(u);
     const Vec3 o = g.centroid[p0];
-    const double off = nrm.dot(o);
     bool fits = true;
     auto snap = [&](const Vec3& c) {
       const double x = u.dot(c - o) * inv, y = v.dot(c - o) * inv;
@@ -90,16 +150,17 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
       own_box.push_back(r);
     }
     all = own;
-    if (nrm[big] > 1 - 1e-9) {  // axis-aligned: the other faces' edges in this plane, as strips eps / 4 wide
-      const double c0 = o[big];
+    if (const int d = direction_of[size_t(k)]; d >= 0) {  // the other faces' edges in this plane, strips eps / 4 wide
+      const Vec3& nd = directions[size_t(d)];
+      const double c0 = nd.dot(o - centre);
       const long long bin = std::llround(c0 / eps);
       for (long long bb = bin - 1; bb <= bin + 1; ++bb) {
-        const auto it = in_plane[size_t(big)].find(bb);
-        if (it == in_plane[size_t(big)].end()) continue;
+        const auto it = in_plane[size_t(d)].find(bb);
+        if (it == in_plane[size_t(d)].end()) continue;
         for (const Edge& ed : it->second) {
           const auto poly = g.polygon(ed.patch);
           const Vec3 &ea = poly[size_t(ed.corner)], &eb = poly[(size_t(ed.corner) + 1) % poly.size()];
-          if (plane[size_t(ed.patch)] == k || std::abs(ea[big] - c0) > eps || std::abs(eb[big] - c0) > eps) continue;
+          if (plane[size_t(ed.patch)] == k || std::abs(nrm.dot(ea - o)) > eps || std::abs(nrm.dot(eb - o)) > eps) continue;
           const ClipperLib::IntPoint pa = snap(ea), pb = snap(eb);
           const double dx = double(pb.X - pa.X), dy = double(pb.Y - pa.Y), len = std::hypot(dx, dy);
           if (!fits || !(len > 0)) continue;
@@ -165,7 +226,7 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
       poly.reserve(hole.size());
       for (const auto& pt : hole) {
         Vec3 c = o + (double(pt.X) * unit) * u + (double(pt.Y) * unit) * v;
-        c += (off - nrm.dot(c)) * nrm;  // exactly in the plane
+        c += nrm.dot(o - c) * nrm;  // in the plane
         poly.push_back(c);
       }
       // A hole the ear clipping cannot take (left open: its rooms stay one cell, which only refuses less).
@@ -174,6 +235,58 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
     }
   }
   return out;
+}
+
+Rooms find_rooms(const mesh::PatchGeometry& g, double eps) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Rooms r;
+  r.portals = find_openings(g, eps);
+  if (!r.portals.empty()) {
+    const int n = g.size();
+    std::vector<std::vector<Vec3>> polys(size_t(n) + r.portals.size());
+    for (int p = 0; p < n; ++p) polys[size_t(p)].assign(g.polygon(p).begin(), g.polygon(p).end());
+    for (size_t q = 0; q < r.portals.size(); ++q) polys[size_t(n) + q] = r.portals[q];
+    Enclosures e = find_enclosures(mesh::PatchGeometry::from_polygons(polys), eps);
+    if (e.surfaces > 0) {
+      r.cell.assign(e.cell.begin(), e.cell.begin() + n);
+      r.rooms = e.cells;
+      r.room_surfaces = std::move(e.cell_surfaces);
+      r.surface_portals.assign(size_t(e.surfaces), {});
+      r.portal_box.resize(r.portals.size());
+      for (size_t q = 0; q < r.portals.size(); ++q) {
+        for (const Vec3& v : r.portals[q]) r.portal_box[q].add(v);
+        const auto& sides = e.surfaces_of[size_t(n) + q];
+        for (int side = 0; side < 2; ++side)
+          if (sides[side] >= 0 && (side == 0 || sides[1] != sides[0]))
+            r.surface_portals[size_t(sides[side])].push_back(int(q));
+      }
+    }
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+bool Rooms::path(const Shaft& shaft, int ra, int rb) const {
+  const std::vector<int>& sa = room_surfaces[size_t(ra)];
+  const std::vector<int>& sb = room_surfaces[size_t(rb)];
+  auto through = [&](int S) {
+    for (int q : surface_portals[size_t(S)])
+      if (polygon_may_meet(shaft, portal_box[size_t(q)], portals[size_t(q)])) return true;
+    return false;
+  };
+  // The symmetric difference of the two sorted surface lists.
+  size_t i = 0, j = 0;
+  while (i < sa.size() || j < sb.size()) {
+    int S;
+    if (j == sb.size() || (i < sa.size() && sa[i] < sb[j])) S = sa[i++];
+    else if (i == sa.size() || sb[j] < sa[i]) S = sb[j++];
+    else {
+      ++i, ++j;
+      continue;
+    }
+    if (!through(S)) return false;
+  }
+  return true;
 }
 
 }  // namespace lambert::formfactor::detail

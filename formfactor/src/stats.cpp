@@ -26,6 +26,7 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
     st_.pairs_exact_hidden += c.exact_hidden;
     st_.pairs_plane_hidden += c.plane_hidden;
     st_.pairs_cell_hidden += c.cell_hidden;
+    st_.pairs_portal_hidden += c.portal_hidden;
     st_.plane_tests += c.plane_tests;
     plane_seconds += c.plane_seconds;
     st_.pairs_exact_integrated += c.exact_integrated;

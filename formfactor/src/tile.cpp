@@ -384,6 +384,15 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
               sh.nj = pr.P.nrm[j];
               sh.oj = pr.P.offset[j];
               sh.eps = pr.P.scene_eps;
+              // In different rooms with no portal of a surface between them in the shaft: exact zero.
+              if (!rooms_.empty()) {
+                const int ri = rooms_.cell[size_t(i)], rj = rooms_.cell[size_t(j)];
+                if (ri >= 0 && rj >= 0 && ri != rj && !rooms_.path(sh, ri, rj)) {
+                  F(i, j) = 0;
+                  ++c.portal_hidden;
+                  continue;
+                }
+              }
               if (!o_.cull_occlusion || tree_.may_block(sh, i, j, &b.blocker)) {
                 const bool swap = area[j] < area[i];
                 const int src = swap ? j : i, tgt = swap ? i : j;

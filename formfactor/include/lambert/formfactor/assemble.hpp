@@ -95,6 +95,9 @@ struct Options {
   // Closed surfaces (rooms, apartments, shut boxes) split space into cells; pairs whose patches face different cells
   // are zero without rays (as HierarchyOptions::enclosures).
   bool enclosures = true;
+  // With enclosures: openings closed by portals split the closed surfaces into rooms (as HierarchyOptions::portals);
+  // pairs in different rooms whose shaft meets no portal between them are zero without rays.
+  bool portals = true;
   // Independent reciprocity check (Stats::reciprocity_*): about this many sampled pairs per method; 0 = off.
   int reciprocity_samples = 40;
   // Fault injection, for the tests of the checks only: every unoccluded F computed by the method named here
@@ -135,6 +138,8 @@ struct Stats {
   // pairs set to zero because their patches face different cells.
   int enclosures = 0, cells = 0;
   long long cell_unknown = 0, pairs_cell_hidden = 0;
+  // Openings closed by portals (Options::portals), the rooms, and the pairs set to zero by them.
+  long long portals = 0, rooms = 0, pairs_portal_hidden = 0;
   // Exact path: occluder patches merged with coplanar touching neighbours (a meshed wall or block face) into
   // this many polygons, one per connected region of their union.
   int occluders_merged = 0, occluder_regions = 0;
