@@ -372,13 +372,18 @@ class Refiner {
   // only through its portals (its other faces are opaque). False when the shaft between the nodes (as
   // link_visibility's) meets no portal of one of those surfaces: nothing passes.
   bool portal_path(const HNode& A, const HNode& B, int ra, int rb) const {
+    return rooms_->path(node_shaft(A, B), ra, rb);
+  }
+
+  // The shaft between two nodes' boxes, in front of the planes of flat ones: where the segments between them run.
+  detail::Shaft node_shaft(const HNode& A, const HNode& B) const {
     detail::Shaft sh = detail::make_shaft(A.box, B.box);
     sh.ni = A.flat ? A.axis : Vec3::Zero();
     sh.oi = A.flat ? A.axis.dot(A.c) + A.slab_lo : -INFINITY;
     sh.nj = B.flat ? B.axis : Vec3::Zero();
     sh.oj = B.flat ? B.axis.dot(B.c) + B.slab_lo : -INFINITY;
     sh.eps = d_.P.scene_eps;
-    return rooms_->path(sh, ra, rb);
+    return sh;
   }
 
   tbb::enumerable_thread_specific<Local> locals;
@@ -598,12 +603,7 @@ class Refiner {
   VisResult link_visibility(const HNode& A, const HNode& B, int a, int b, Local& loc, bool cast_rays,
                             const RayGoals& goals) {
     if (!occlusion_) return {};
-    detail::Shaft sh = detail::make_shaft(A.box, B.box);
-    sh.ni = A.flat ? A.axis : Vec3::Zero();
-    sh.oi = A.flat ? A.axis.dot(A.c) + A.slab_lo : -INFINITY;
-    sh.nj = B.flat ? B.axis : Vec3::Zero();
-    sh.oj = B.flat ? B.axis.dot(B.c) + B.slab_lo : -INFINITY;
-    sh.eps = d_.P.scene_eps;
+    const detail::Shaft sh = node_shaft(A, B);
     if (!tree_.may_block(sh, -1, -1, &loc.hint)) {
       ++loc.shaft_clear;
       return {};
