@@ -5,6 +5,8 @@
 // tolerance of 1e-5 holds with a wide margin and fails for any missing or extra piece of an opening.
 #include <gtest/gtest.h>
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -254,6 +256,31 @@ TEST(Portals, DenseWithPortalsEqualsWithoutBitForBit) {
                         << " with portals, " << D[0].matrix()(i, j) << " without";
     EXPECT_EQ(differ, 0) << name;
   }
+}
+
+// The rooms and what they refuse do not depend on the thread count (nor does anything else): the hierarchy built on
+// 1 and on 3 threads applies to the same bits, and refuses the same node pairs.
+TEST(Portals, HierarchyWithPortalsIsTheSameOnAnyThreadCount) {
+  const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(two_rooms_and_a_door());
+  const int n = g.size();
+  Eigen::VectorXd x(n), y[2];
+  for (int i = 0; i < n; ++i) x[i] = 1 + std::sin(0.37 * i);
+  long long refused[2] = {0, 0};
+  for (int t = 0; t < 2; ++t) {
+    tbb::task_arena arena(t == 0 ? 1 : 3);
+    arena.execute([&] {
+      formfactor::HierarchyOptions ho;
+      ho.tolerance = 2e-2;
+      formfactor::HierarchyStats st;
+      const formfactor::HierarchicalOperator H = formfactor::build_hierarchy(g, ho, &st);
+      refused[t] = st.pairs_portal_culled;
+      y[t].resize(n);
+      H.apply(x, y[t]);
+    });
+  }
+  EXPECT_GT(refused[0], 0) << "nothing refused: the test exercises nothing";
+  EXPECT_EQ(refused[0], refused[1]);
+  for (int i = 0; i < n; ++i) ASSERT_EQ(y[0][i], y[1][i]) << "row " << i << ": 1 thread vs 3 threads";
 }
 
 }  // namespace
