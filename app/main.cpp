@@ -132,10 +132,10 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
     sub->add_option("--portals", common.portals,
-                    "Hierarchical operator, with --enclosures on: close the openings (holes in the patches of a "
-                    "plane: doors, open windows) by virtual portals, so the closed surfaces split into rooms, and "
-                    "refuse node pairs in different rooms whose shaft meets no portal between them without rays "
-                    "(off: apartments only)")
+                    "With --enclosures on: close the openings (holes in the patches of a plane: doors, open "
+                    "windows) by virtual portals, so the closed surfaces split into rooms, and set pairs in different "
+                    "rooms whose shaft meets no portal between them to zero without rays (both operators; off: "
+                    "apartments only)")
         ->check(CLI::IsMember({"on", "off"}))
         ->capture_default_str();
   };

@@ -336,3 +336,34 @@ TEST_F(Cli, FormFactorsWithExactVisibilityMatchAreaFormulation) {
   const CliRun bad = run("formfactors " + obj + " -o " + path("G.csv") + " --visibility bogus");
   EXPECT_EQ(bad.status, 1) << bad.output;
 }
+
+// --portals: a bad value is refused naming the option; on the floor plan (doors from the floor up between rooms)
+// the stats report the openings and the pairs they refused, and the form-factor file is byte for byte the one
+// without portals (refused pairs are hidden: their rays would all have hit a wall).
+TEST_F(Cli, PortalsRefusePairsAndLeaveTheFormFactorsUnchanged) {
+  const CliRun bad = run("formfactors " + kExamples + "floorplan.obj -o " + path("bad.csv") + " --portals maybe");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.output.find("--portals"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(path("bad.csv")));
+  std::string csv[2];
+  for (int on = 0; on < 2; ++on) {
+    const std::string out = path(on ? "on.csv" : "off.csv"), stats = path(on ? "on.json" : "off.json");
+    const CliRun r = run("formfactors " + kExamples + "floorplan.obj -o " + out + " --stats " + stats + " --quiet" +
+                         " --portals " + (on ? "on" : "off"));
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::ifstream js(stats);
+    const nlohmann::json j = nlohmann::json::parse(js);
+    const auto& p = j.at("form_factors").at("portals");
+    if (on) {
+      EXPECT_EQ(p.at("openings").get<long long>(), 45) << p.dump();
+      EXPECT_GT(p.at("rooms").get<long long>(), 3) << "more rooms than the apartment's cells: " << p.dump();
+      EXPECT_GT(p.at("pairs_refused").get<long long>(), 0) << p.dump();
+    } else {
+      EXPECT_EQ(p.at("pairs_refused").get<long long>(), 0) << p.dump();
+    }
+    std::ifstream in(out, std::ios::binary);
+    csv[on] = std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  EXPECT_FALSE(csv[0].empty());
+  EXPECT_TRUE(csv[0] == csv[1]) << "the form factors changed with portals on";
+}
