@@ -246,7 +246,14 @@ Rooms find_rooms(const mesh::PatchGeometry& g, double eps) {
     std::vector<std::vector<Vec3>> polys(size_t(n) + r.portals.size());
     for (int p = 0; p < n; ++p) polys[size_t(p)].assign(g.polygon(p).begin(), g.polygon(p).end());
     for (size_t q = 0; q < r.portals.size(); ++q) polys[size_t(n) + q] = r.portals[q];
-    Enclosures e = find_enclosures(mesh::PatchGeometry::from_polygons(polys), eps);
+    // The patches were built from these same polygons and the portals were triangulated: from_polygons cannot
+    // refuse them; if it ever did, the scene keeps its apartments (no rooms), which only refuses less.
+    Enclosures e;
+    try {
+      e = find_enclosures(mesh::PatchGeometry::from_polygons(polys), eps);
+    } catch (const InputError&) {
+      e = Enclosures{};
+    }
     if (e.surfaces > 0) {
       r.cell.assign(e.cell.begin(), e.cell.begin() + n);
       r.rooms = e.cells;
