@@ -118,13 +118,9 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
   std::vector<ClipperLib::IntRect> own_box;
   for (int k = 0; k < planes; ++k) {
     const int b = count[size_t(k)], e = count[size_t(k) + 1];
-    // The plane's frame: the first patch's normal (made canonical as plane_ids does), origin at its centroid.
+    // The plane's frame: its normal, origin at its first patch's centroid.
     const int p0 = members[size_t(b)];
-    Vec3 nrm = g.normal[p0];
-    int big = 0;
-    for (int c = 1; c < 3; ++c)
-      if (std::abs(nrm[c]) > std::abs(nrm[big])) big = c;
-    if (nrm[big] < 0) nrm = -nrm;
+    const Vec3& nrm = plane_normal[size_t(k)];
     const Vec3 u = (std::abs(nrm.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(nrm).normalized();
     const Vec3 v = nrm.cross(u);
     const Vec3 o = g.centroid[p0];
