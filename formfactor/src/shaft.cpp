@@ -42,9 +42,14 @@ Shaft make_shaft(const Box& a, const Box& b) {
 }
 
 namespace {
+// Strict: a box that only touches the shaft's boundary (a face of the joint box, or a hull plane through edges of
+// the two boxes) is outside. A segment between the two patches (or clusters) reaches such a supporting plane only
+// where it lies in it, i.e. with both ends in it; pairs of points doing so have positive measure only for patches
+// lying in that plane, which are coplanar and exchange nothing. So walls meeting a pair's patches at a room's
+// corners, coplanar neighbours and a floor under a cluster standing on it need no ray.
 bool box_outside(const Shaft& s, const Box& c) {
   for (int k = 0; k < 3; ++k)
-    if (c.hi[k] < s.box.lo[k] || c.lo[k] > s.box.hi[k]) return true;
+    if (c.hi[k] <= s.box.lo[k] || c.lo[k] >= s.box.hi[k]) return true;
   // Extreme corners, not centre and half extent: evaluated corner by corner, the test is monotone under rounding
   // (a box inside a box that is outside is outside), so the tree's pruning and a test of one occluder agree and
   // the answer does not depend on where a traversal starts (may_block's hint, hence on the thread count).
@@ -53,7 +58,7 @@ bool box_outside(const Shaft& s, const Box& c) {
            n.z() * (n.z() > 0 ? c.lo.z() : c.hi.z());
   };
   for (int p = 0; p < s.planes; ++p)
-    if (lowest(s.n[p]) > s.d[p]) return true;
+    if (lowest(s.n[p]) >= s.d[p]) return true;
   // Entirely in the closed back half-space of either patch: the open segments run strictly in front.
   if (-lowest(-s.ni) - s.oi <= s.eps) return true;
   if (-lowest(-s.nj) - s.oj <= s.eps) return true;
@@ -107,7 +112,7 @@ bool polygon_may_meet(const Shaft& s, const Box& box, std::span<const Vec3> poly
   for (int q = 0; q < s.planes; ++q) {
     bool out = true;
     for (const Vec3& v : poly)
-      if (s.n[q].dot(v) <= s.d[q]) {
+      if (s.n[q].dot(v) < s.d[q]) {
         out = false;
         break;
       }

@@ -32,8 +32,9 @@ struct Shaft {
   double oi = 0, oj = 0, eps = 0;
 };
 Shaft make_shaft(const Box& a, const Box& b);
-// False only if no segment of the shaft can meet the polygon (box: the polygon's bounding box): the polygon lies
-// outside one of the shaft's planes or its box, or in the closed back half-space of either patch. Conservative.
+// False only if no segment of the shaft can meet the polygon (box: the polygon's bounding box) except on the shaft's
+// boundary, where only segments between coplanar patches run: the polygon lies outside or on one of the shaft's
+// planes or its box's faces, or in the closed back half-space of either patch. Conservative.
 bool polygon_may_meet(const Shaft& s, const Box& box, std::span<const Vec3> polygon);
 
 // Bounding-volume tree over the patches that can occlude anything.
