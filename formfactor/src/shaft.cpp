@@ -1,6 +1,7 @@
 #include "shaft.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace lambert::formfactor::detail {
@@ -78,10 +79,10 @@ OccluderTree::OccluderTree(const mesh::PatchGeometry& g, const std::vector<int>&
     centers_[p] = 0.5 * (b.lo + b.hi);
   }
   nodes_.reserve(2 * occluders.size());
-  build(0, int(items_.size()));
+  build(0, int(items_.size()), 0);
 }
 
-int OccluderTree::build(int begin, int end) {
+int OccluderTree::build(int begin, int end, int depth) {
   const int id = int(nodes_.size());
   nodes_.emplace_back();
   Box b;
@@ -92,15 +93,66 @@ int OccluderTree::build(int begin, int end) {
     nodes_[id].end = end;
     return id;
   }
-  int axis = 0;
-  const Vec3 ext = b.hi - b.lo;
-  if (ext[1] > ext[axis]) axis = 1;
-  if (ext[2] > ext[axis]) axis = 2;
-  const int mid = (begin + end) / 2;
-  std::nth_element(items_.begin() + begin, items_.begin() + mid, items_.begin() + end,
-                   [&](int x, int y) { return centers_[x][axis] < centers_[y][axis]; });
-  const int l = build(begin, mid);
-  const int r = build(mid, end);
+  // Binned surface-area heuristic (Wald 2007): the split, over 3 axes x 31 bin boundaries of the centroids, that
+  // minimises the children's box areas times their counts. Shafts inside a room then visit fewer nodes than with
+  // a median split, whose boxes mix a room's walls with the next room's.
+  Box cb;
+  for (int k = begin; k < end; ++k) cb.add(centers_[items_[k]]);
+  constexpr int kBins = 32;
+  auto half_area = [](const Box& x) {
+    const Vec3 e = (x.hi - x.lo).cwiseMax(0.0);
+    return e.x() * e.y() + e.y() * e.z() + e.z() * e.x();
+  };
+  int best_axis = -1, best_bin = 0;
+  double best_cost = INFINITY;
+  // Past depth 32 the median split of the widest axis (at most log2(n) more levels: the traversal's stack of 64).
+  for (int axis = 0; axis < 3 && depth < 32; ++axis) {
+    const double lo = cb.lo[axis], width = cb.hi[axis] - cb.lo[axis];
+    if (!(width > 0)) continue;
+    std::array<Box, kBins> bin_box;
+    std::array<int, kBins> bin_count{};
+    auto bin_of = [&](int p) { return std::min(kBins - 1, int(kBins * (centers_[p][axis] - lo) / width)); };
+    for (int k = begin; k < end; ++k) {
+      const int p = items_[k], j = bin_of(p);
+      ++bin_count[j];
+      bin_box[j].add(boxes_[p]);
+    }
+    std::array<double, kBins> right_cost{};
+    Box acc;
+    int cnt = 0;
+    for (int j = kBins - 1; j > 0; --j) {
+      acc.add(bin_box[j]);
+      cnt += bin_count[j];
+      right_cost[j] = cnt ? half_area(acc) * cnt : 0.0;
+    }
+    acc = Box();
+    cnt = 0;
+    for (int j = 0; j < kBins - 1; ++j) {
+      acc.add(bin_box[j]);
+      cnt += bin_count[j];
+      if (cnt == 0 || cnt == end - begin) continue;
+      const double cost = half_area(acc) * cnt + right_cost[j + 1];
+      if (cost < best_cost) best_cost = cost, best_axis = axis, best_bin = j;
+    }
+  }
+  int mid = (begin + end) / 2;
+  if (best_axis >= 0) {
+    const int axis = best_axis;
+    const double lo = cb.lo[axis], width = cb.hi[axis] - cb.lo[axis];
+    auto it = std::partition(items_.begin() + begin, items_.begin() + end, [&](int p) {
+      return std::min(kBins - 1, int(kBins * (centers_[p][axis] - lo) / width)) <= best_bin;
+    });
+    mid = int(it - items_.begin());
+  } else {
+    int axis = 0;
+    const Vec3 ext = cb.hi - cb.lo;
+    if (ext[1] > ext[axis]) axis = 1;
+    if (ext[2] > ext[axis]) axis = 2;
+    std::nth_element(items_.begin() + begin, items_.begin() + mid, items_.begin() + end,
+                     [&](int x, int y) { return centers_[x][axis] < centers_[y][axis] || (centers_[x][axis] == centers_[y][axis] && x < y); });
+  }
+  const int l = build(begin, mid, depth + 1);
+  const int r = build(mid, end, depth + 1);
   nodes_[id].left = l;
   nodes_[id].right = r;
   return id;

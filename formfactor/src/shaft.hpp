@@ -56,7 +56,7 @@ class OccluderTree {
     Box box;
     int left = -1, right = -1, begin = 0, end = 0;  // leaf if left < 0: items [begin, end)
   };
-  int build(int begin, int end);
+  int build(int begin, int end, int depth);
   template <class Visit>
   bool traverse(const Shaft& s, int ia, int ib, Visit&& visit) const;
   bool item_may_block(const Shaft& s, int p) const;
