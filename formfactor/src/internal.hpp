@@ -119,6 +119,15 @@ enum Method {
 extern const char* const kMethodNames[kMethodCount];
 int tier_method(int t);
 PairEval pair_scalar(const PatchData& P, int src, int tgt, double tol);
+// The source normals and target corners the SIMD point kernel reads (batch.hpp's SoA, only nx/ny/nz and qx/qy/qz
+// set), for pair_scalar's outer Gauss rules: the same rule points, evaluated 8 (AVX-512), 4 or 2 at a time.
+struct PointSoA {
+  std::vector<double> cols;  // 15 columns of n + kBatchPad
+  SoA soa{};
+  explicit PointSoA(const PatchData& P);
+};
+// pair_scalar, with the Gauss rules' points on triangles and convex quads evaluated by the SIMD kernel.
+PairEval pair_scalar(const PatchData& P, const PointSoA& soa, int src, int tgt, double tol);
 
 // A_t F_ts (m^2) integrated from t's side, independently of the tiers: mutual clipping, then the adaptive
 // double contour integral with t's edges outer, to an absolute error tol * A_s on A_t F_ts. For the

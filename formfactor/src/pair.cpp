@@ -171,7 +171,57 @@ double far_field(const Vec3& ci, const Vec3& ni, const std::array<double, 6>& Mi
   return far_field_value(u.x(), u.y(), u.z(), ni.x(), ni.y(), ni.z(), nj.x(), nj.y(), nj.z(), moments(Mi), moments(Mj), Aj);
 }
 
-PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
+namespace {
+// sum_k w_k F(x_k -> t) over rule points (x, y, z, w) with the normal of s: by the SIMD kernel when soa is given
+// and t is a triangle or convex quad (its corners in the SoA), else one point at a time.
+double rule_sum(const PatchData& P, const PointSoA* soa, int s, int t, std::span<const std::array<double, 4>> pts,
+                std::span<const Vec3> Pt) {
+  double F = 0;
+  if (soa && P.kind[size_t(t)] <= 2) {
+    thread_local std::vector<double> x, y, z, w, out;
+    thread_local std::vector<int> si, ti;
+    const size_t n = pts.size();
+    x.resize(n), y.resize(n), z.resize(n), w.resize(n), out.resize(n);
+    si.assign(n, s), ti.assign(n, t);
+    for (size_t k = 0; k < n; ++k) x[k] = pts[k][0], y[k] = pts[k][1], z[k] = pts[k][2], w[k] = pts[k][3];
+    batch_kernels().eval_points(soa->soa, x.data(), y.data(), z.data(), w.data(), si.data(), ti.data(), int(n),
+                                out.data());
+    for (size_t k = 0; k < n; ++k) F += out[k];
+    return F;
+  }
+  for (const auto& X : pts) F += X[3] * contour_sum(Vec3(X[0], X[1], X[2]), P.nrm[s], Pt);
+  return F;
+}
+
+PairEval pair_eval(const PatchData& P, const PointSoA* soa, int s, int t, double tol);
+}  // namespace
+
+PointSoA::PointSoA(const PatchData& P) {
+  const mesh::PatchGeometry& g = *P.g;
+  const size_t n = size_t(P.n), stride = n + kBatchPad;
+  cols.assign(15 * stride, 0.0);
+  double* c = cols.data();
+  auto col = [&](int k) { return c + size_t(k) * stride; };
+  for (size_t p = 0; p < n; ++p) {
+    col(0)[p] = P.nrm[p].x(), col(1)[p] = P.nrm[p].y(), col(2)[p] = P.nrm[p].z();
+    const auto poly = g.polygon(int(p));
+    for (size_t k = 0; k < 4; ++k) {
+      const Vec3& v = poly[std::min(k, poly.size() - 1)];  // triangles repeat corner 2 (batch.hpp)
+      for (int a = 0; a < 3; ++a) col(3 + 3 * int(k) + a)[p] = v[a];
+    }
+  }
+  soa.nx = col(0), soa.ny = col(1), soa.nz = col(2);
+  for (int k = 0; k < 4; ++k) soa.qx[k] = col(3 + 3 * k), soa.qy[k] = col(4 + 3 * k), soa.qz[k] = col(5 + 3 * k);
+  soa.eps = P.scene_eps;
+}
+
+PairEval pair_scalar(const PatchData& P, int s, int t, double tol) { return pair_eval(P, nullptr, s, t, tol); }
+PairEval pair_scalar(const PatchData& P, const PointSoA& soa, int s, int t, double tol) {
+  return pair_eval(P, &soa, s, t, tol);
+}
+
+namespace {
+PairEval pair_eval(const PatchData& P, const PointSoA* soa, int s, int t, double tol) {
   PairEval out;
   const mesh::PatchGeometry& g = *P.g;
   const auto Ps = g.polygon(s), Pt = g.polygon(t);
@@ -204,10 +254,8 @@ PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
           F = contour_sum(P.c[s], P.nrm[s], Pt) + hessian_correction(P.c[s], P.nrm[s], P.M[s], P.c[t], P.nrm[t], P.area[t]);
           out.evaluations = 1;
         } else if (m <= 4 && !P.rule_off[m].empty()) {  // rules prepared (prepare's max_tier)
-          for (int k = P.rule_off[m][s]; k < P.rule_off[m][s + 1]; ++k) {
-            const auto& X = P.rule_pts[m][k];
-            F += X[3] * contour_sum(Vec3(X[0], X[1], X[2]), P.nrm[s], Pt);
-          }
+          const int k0 = P.rule_off[m][s], k1 = P.rule_off[m][s + 1];
+          F = rule_sum(P, soa, s, t, std::span(P.rule_pts[m]).subspan(size_t(k0), size_t(k1 - k0)), Pt);
           out.evaluations = P.rule_off[m][s + 1] - P.rule_off[m][s];
         } else {
           thread_local std::vector<std::array<double, 4>> pts;
@@ -217,7 +265,7 @@ PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
           for (int k = g.triangle_offsets[s]; k < g.triangle_offsets[s + 1]; ++k)
             local.push_back({g.triangles[k][0] - g.offsets[s], g.triangles[k][1] - g.offsets[s], g.triangles[k][2] - g.offsets[s]});
           outer_rule(Ps, local, m, pts);
-          for (const auto& X : pts) F += X[3] * contour_sum(Vec3(X[0], X[1], X[2]), P.nrm[s], Pt);
+          F = rule_sum(P, soa, s, t, pts, Pt);
           out.evaluations = (long long)pts.size();
         }
         out.F = F;
@@ -239,6 +287,8 @@ PairEval pair_scalar(const PatchData& P, int s, int t, double tol) {
   out.evaluations = c.evaluations;
   return out;
 }
+
+}  // namespace
 
 ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol) {
   const mesh::PatchGeometry& g = *P.g;
