@@ -21,7 +21,7 @@ inline double edge_log_integral(const Vec3& w, const Vec3& v, double L, double i
     const double r2 = s * s + d2;
     double g = -2 * s;
     if (s != 0) g += s * std::log(r2);
-    if (d > 0) g += 2 * d * std::atan2(s, d);
+    if (d > 0) g += 2 * d * (s < 0 ? -atan2_pos(-s, d) : atan2_pos(s, d));  // atan2(s, d), the kernels' ~1 ulp one
     return g;
   };
   return (G(L - wv) - G(-wv)) * (0.5 * inv_L);
