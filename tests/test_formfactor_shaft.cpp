@@ -26,44 +26,7 @@ mesh::PatchGeometry scene() {
   return mesh::PatchGeometry::from_polygons(polys);
 }
 
-// For every patch pair, the shaft as the hierarchy's leaf pairs build it; may_block without a hint and with every
-// occluder as the hint must agree exactly (a yes/no answer: no tolerance). Before the box test was made monotone
-// under rounding (extreme corners instead of centre +- half extent), 19 of 27,029 such shafts differed.
-TEST(OccluderTree, MayBlockDoesNotDependOnTheHint) {
-  const mesh::PatchGeometry g = scene();
-  const int n = g.size();
-  std::vector<int> occ(static_cast<size_t>(n));
-  for (int p = 0; p < n; ++p) occ[static_cast<size_t>(p)] = p;
-  const fd::OccluderTree tree(g, occ);
-  std::vector<fd::Box> box(static_cast<size_t>(n));
-  for (int p = 0; p < n; ++p)
-    for (const Vec3& v : g.polygon(p)) box[size_t(p)].add(v);
-  long long shafts = 0, disagreements = 0;
-  for (int i = 0; i < n; ++i)
-    for (int j = i + 1; j < n; ++j) {
-      fd::Shaft sh = fd::make_shaft(box[size_t(i)], box[size_t(j)]);
-      sh.ni = g.normal[i];
-      sh.oi = g.normal[i].dot(g.centroid[i]);
-      sh.nj = g.normal[j];
-      sh.oj = g.normal[j].dot(g.centroid[j]);
-      sh.eps = 1e-10 * 4.6;
-      const bool plain = tree.may_block(sh, i, j);
-      ++shafts;
-      for (int h = 0; h < n; h += 7) {
-        int hint = h;
-        const bool hinted = tree.may_block(sh, i, j, &hint);
-        if (hinted != plain) {
-          ++disagreements;
-          ADD_FAILURE() << "patches " << i << ", " << j << ": may_block " << plain << " without a hint, " << hinted
-                        << " with hint " << h;
-          if (disagreements > 5) return;
-        }
-      }
-    }
-  EXPECT_GT(shafts, 10000);
-}
-
-
+// The shaft as the hierarchy's leaf pairs build it.
 fd::Shaft pair_shaft(const mesh::PatchGeometry& g, const std::vector<fd::Box>& box, int i, int j) {
   fd::Shaft sh = fd::make_shaft(box[size_t(i)], box[size_t(j)]);
   sh.ni = g.normal[i];
@@ -80,6 +43,37 @@ std::vector<fd::Box> boxes(const mesh::PatchGeometry& g) {
     for (const Vec3& v : g.polygon(p)) box[size_t(p)].add(v);
   return box;
 }
+
+// For every patch pair, the shaft as the hierarchy's leaf pairs build it; may_block without a hint and with every
+// occluder as the hint must agree exactly (a yes/no answer: no tolerance). Before the box test was made monotone
+// under rounding (extreme corners instead of centre +- half extent), 19 of 27,029 such shafts differed.
+TEST(OccluderTree, MayBlockDoesNotDependOnTheHint) {
+  const mesh::PatchGeometry g = scene();
+  const int n = g.size();
+  std::vector<int> occ(static_cast<size_t>(n));
+  for (int p = 0; p < n; ++p) occ[static_cast<size_t>(p)] = p;
+  const fd::OccluderTree tree(g, occ);
+  const auto box = boxes(g);
+  long long shafts = 0, disagreements = 0;
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j) {
+      const fd::Shaft sh = pair_shaft(g, box, i, j);
+      const bool plain = tree.may_block(sh, i, j);
+      ++shafts;
+      for (int h = 0; h < n; h += 7) {
+        int hint = h;
+        const bool hinted = tree.may_block(sh, i, j, &hint);
+        if (hinted != plain) {
+          ++disagreements;
+          ADD_FAILURE() << "patches " << i << ", " << j << ": may_block " << plain << " without a hint, " << hinted
+                        << " with hint " << h;
+          if (disagreements > 5) return;
+        }
+      }
+    }
+  EXPECT_GT(shafts, 10000);
+}
+
 
 // A segment between the interiors of two patches of a convex room runs inside the room: no wall can block it. The
 // walls next to a pair touch the pair's shaft only on its boundary (a face of the joint box, or a plane through
