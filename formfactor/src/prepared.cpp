@@ -10,7 +10,7 @@ double* Prepared::column(size_t n) {
   return store.back().data();
 }
 
-Prepared::Prepared(const mesh::PatchGeometry& g) : P(prepare(g)) {
+Prepared::Prepared(const mesh::PatchGeometry& g) : P(prepare(g)), points(P) {
   const int n = P.n;
   store.reserve(40);
   auto fill = [&](auto f) {
@@ -21,20 +21,16 @@ Prepared::Prepared(const mesh::PatchGeometry& g) : P(prepare(g)) {
   soa.cx = fill([&](int p) { return P.c[p].x(); });
   soa.cy = fill([&](int p) { return P.c[p].y(); });
   soa.cz = fill([&](int p) { return P.c[p].z(); });
-  soa.nx = fill([&](int p) { return P.nrm[p].x(); });
-  soa.ny = fill([&](int p) { return P.nrm[p].y(); });
-  soa.nz = fill([&](int p) { return P.nrm[p].z(); });
+  soa.nx = points.soa.nx;
+  soa.ny = points.soa.ny;
+  soa.nz = points.soa.nz;
   soa.off = fill([&](int p) { return P.offset[p]; });
   soa.area = fill([&](int p) { return P.area[p]; });
   soa.radius = fill([&](int p) { return P.radius[p]; });
   for (int c = 0; c < 4; ++c) {
-    auto corner = [&, c](int p, int axis) {
-      const auto poly = g.polygon(p);
-      return poly[std::min<size_t>(c, poly.size() - 1)][axis];
-    };
-    soa.qx[c] = fill([&](int p) { return corner(p, 0); });
-    soa.qy[c] = fill([&](int p) { return corner(p, 1); });
-    soa.qz[c] = fill([&](int p) { return corner(p, 2); });
+    soa.qx[c] = points.soa.qx[c];
+    soa.qy[c] = points.soa.qy[c];
+    soa.qz[c] = points.soa.qz[c];
   }
   for (int k = 0; k < 6; ++k) soa.M[k] = fill([&](int p) { return P.M[p][k]; });
   soa.fast = fill([&](int p) { return P.kind[p] <= 2 ? 1.0 : 0.0; });

@@ -12,6 +12,7 @@ namespace lambert::formfactor::detail {
 
 struct Prepared {
   PatchData P;
+  PointSoA points;  // normals and corners (the columns the point kernel reads), shared with soa
   std::vector<std::vector<double>> store;
   std::array<Rule2D, 9> square_rule, triangle_rule;  // reference rules for m = 6, 8
   std::vector<Box> box;
