@@ -37,6 +37,10 @@ Shaft make_shaft(const Box& a, const Box& b) {
           n[v] = nv;
           s.n[s.planes] = n;
           s.d[s.planes] = nu * pu + nv * pv;
+          s.u[s.planes] = std::uint8_t(u);
+          s.v[s.planes] = std::uint8_t(v);
+          s.su[s.planes] = nu > 0 ? 0 : 1;
+          s.sv[s.planes] = nv > 0 ? 0 : 1;
           ++s.planes;
         }
   return s;
@@ -58,8 +62,13 @@ bool box_outside(const Shaft& s, const Box& c) {
     return n.x() * (n.x() > 0 ? c.lo.x() : c.hi.x()) + n.y() * (n.y() > 0 ? c.lo.y() : c.hi.y()) +
            n.z() * (n.z() > 0 ? c.lo.z() : c.hi.z());
   };
-  for (int p = 0; p < s.planes; ++p)
-    if (lowest(s.n[p]) >= s.d[p]) return true;
+  // The hull planes: n has zero third component, so lowest(n) = n_u c_u + n_v c_v (adding the exact zero term
+  // changes nothing: the same value, bit for bit), with the corners chosen once per shaft.
+  const double* corner[2] = {c.lo.data(), c.hi.data()};
+  for (int p = 0; p < s.planes; ++p) {
+    const Vec3& n = s.n[p];
+    if (n[s.u[p]] * corner[s.su[p]][s.u[p]] + n[s.v[p]] * corner[s.sv[p]][s.v[p]] >= s.d[p]) return true;
+  }
   // Entirely in the closed back half-space of either patch: the open segments run strictly in front.
   if (-lowest(-s.ni) - s.oi <= s.eps) return true;
   if (-lowest(-s.nj) - s.oj <= s.eps) return true;

@@ -3,6 +3,7 @@
 // planes through matching edges of the two boxes. A segment between the two patches lies in that shaft and
 // in front of both patches' planes, so an occluder outside either cannot block it.
 #include <array>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -27,6 +28,9 @@ struct Shaft {
   int planes = 0;
   std::array<Vec3, 12> n;  // outward normals: the shaft is n.p <= d for every plane
   std::array<double, 12> d;
+  // The same planes for the box test: the two axes u < v of each normal's nonzero components (the third is 0) and
+  // which corner of a box is lowest along it per axis (0: lo, 1: hi).
+  std::array<std::uint8_t, 12> u, v, su, sv;
   // Planes of the two patches: segments run in their strict front half-spaces.
   Vec3 ni, nj;
   double oi = 0, oj = 0, eps = 0;
