@@ -54,11 +54,6 @@ struct BatchKernels {
   // column-major. Centres of a link's two nodes must differ.
   void (*gather_links)(const double* rec, const double* ca, const int* src, const float* vis, long long count,
                        double* out);
-  // Segments k < count from o_k to o_k + d_k (seg: ox, oy, oz, dx, dy, dz, each with count rounded up to a multiple
-  // of 8 readable entries) against ntris closed triangles (tris: 9 doubles each, corner A, B - A, C - A):
-  // hidden[k] = 1 where the open segment (0 < t < 1) meets one; entries already 1 stay 1. Double precision,
-  // Moller-Trumbore as the brute-force caster (visibility.cpp).
-  void (*segments_hidden)(const double* const seg[6], int count, const double* tris, int ntris, std::uint8_t* hidden);
 };
 constexpr int kMomentRecord = 33;
 

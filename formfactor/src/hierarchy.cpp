@@ -733,14 +733,7 @@ class Refiner {
       const double share = std::max(Fst, Fst * g_.area[s] / g_.area[t]);
       const bool exact = o_.visibility_method == VisibilityMethod::Exact ||
                          (o_.visibility_method == VisibilityMethod::Auto && share > etol_);
-      // The rays path collects the shaft's occluders at once: few enough are tested directly (visible_ratio).
-      bool may_block;
-      if (exact) may_block = tree_.may_block(sh, s, t, &loc.hint);
-      else {
-        loc.cand.clear();
-        tree_.collect(sh, s, t, loc.cand);
-        may_block = !loc.cand.empty();
-      }
+      const bool may_block = tree_.may_block(sh, s, t, &loc.hint);
       if (may_block && exact) {
         // As the dense assembly's exact path: F_st minus the integral of what the occluders hide.
         loc.cand.clear();
@@ -764,8 +757,7 @@ class Refiner {
         ++loc.pair_ray_tested;
         const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
         const detail::VisibleRatio v =
-            detail::visible_ratio(g_, d_.P, *caster_, s, t, o_.rays_per_pair * m * m * m * m, loc.sb,
-                                  loc.cand.size() <= detail::kDirectOccluders ? &loc.cand : nullptr);
+            detail::visible_ratio(g_, d_.P, *caster_, s, t, o_.rays_per_pair * m * m * m * m, loc.sb);
         loc.rays += v.rays;
         sigma = Fst * v.sigma;
         Fst *= v.ratio;

@@ -1,8 +1,6 @@
 // Ray sampling for the visible fraction of a patch pair: stratified points on both patches, paired.
 #include "sampling.hpp"
 
-#include "batch.hpp"
-
 #include <algorithm>
 #include <cmath>
 
@@ -100,34 +98,8 @@ void sample_polygon(std::span<const Vec3> poly, const Vec3& normal, int n, std::
   }
 }
 
-void segments_hidden(const mesh::PatchGeometry& g, std::span<const int> occluders, std::span<const Vec3> from,
-                     std::span<const Vec3> to, SampleBuffers& b, std::span<std::uint8_t> hidden) {
-  const size_t n = from.size(), padded = (n + 7) & ~size_t(7);
-  std::fill(hidden.begin(), hidden.end(), std::uint8_t(0));
-  if (n == 0 || occluders.empty()) return;
-  b.seg.assign(6 * padded, 0.0);
-  double* seg[6];
-  for (int c = 0; c < 6; ++c) seg[c] = b.seg.data() + c * padded;
-  for (size_t k = 0; k < n; ++k) {
-    const Vec3 d = to[k] - from[k];
-    for (int c = 0; c < 3; ++c) {
-      seg[c][k] = from[k][c];
-      seg[3 + c][k] = d[c];
-    }
-  }
-  b.tris.clear();
-  for (const int p : occluders)
-    for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) {
-      const auto& T = g.triangles[k];
-      const Vec3 &A = g.points[T[0]], e1 = g.points[T[1]] - A, e2 = g.points[T[2]] - A;
-      b.tris.insert(b.tris.end(), {A.x(), A.y(), A.z(), e1.x(), e1.y(), e1.z(), e2.x(), e2.y(), e2.z()});
-    }
-  const double* const cseg[6] = {seg[0], seg[1], seg[2], seg[3], seg[4], seg[5]};
-  batch_kernels().segments_hidden(cseg, int(n), b.tris.data(), int(b.tris.size() / 9), hidden.data());
-}
-
 VisibleRatio visible_ratio(const mesh::PatchGeometry& g, const PatchData& P, const Visibility& caster, int s, int t,
-                           int R, SampleBuffers& b, const std::vector<int>* occluders) {
+                           int R, SampleBuffers& b) {
   // R rays between R stratified points on each patch, paired by a random permutation ("padding"): every
   // ray has its own source and target stratum, so both patches are sampled R-fold, not sqrt(R)-fold as
   // with all pairs of sqrt(R) points per side (same rays, several times smaller error on shadow edges).
@@ -169,10 +141,7 @@ VisibleRatio visible_ratio(const mesh::PatchGeometry& g, const PatchData& P, con
     b.fx.push_back(cx * cy / (r2 * r2));
   }
   b.hidden.assign(b.from.size(), 0);
-  if (!b.from.empty()) {
-    if (occluders) segments_hidden(g, *occluders, b.from, b.to, b, b.hidden);
-    else caster.occluded(b.from, b.to, s, t, b.hidden);
-  }
+  if (!b.from.empty()) caster.occluded(b.from, b.to, s, t, b.hidden);
   res.rays = (long long)b.from.size();
   double num = 0, den = 0;
   for (size_t k = 0; k < b.from.size(); ++k) {

@@ -393,23 +393,12 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                   continue;
                 }
               }
-              const double share = std::max(F(i, j), F(i, j) * area[i] / area[j]);
-              const bool exact = o_.visibility_method == VisibilityMethod::Exact ||
-                                 (o_.visibility_method == VisibilityMethod::Auto && share > tol);
-              // The rays path collects the shaft's occluders at once: few enough are tested directly (visible_ratio).
-              bool block = true, direct = false;
-              if (o_.cull_occlusion) {
-                if (exact) block = tree_.may_block(sh, i, j, &b.blocker);
-                else {
-                  b.cand.clear();
-                  tree_.collect(sh, i, j, b.cand);
-                  block = !b.cand.empty();
-                  direct = b.cand.size() <= kDirectOccluders;
-                }
-              }
-              if (block) {
+              if (!o_.cull_occlusion || tree_.may_block(sh, i, j, &b.blocker)) {
                 const bool swap = area[j] < area[i];
                 const int src = swap ? j : i, tgt = swap ? i : j;
+                const double share = std::max(F(i, j), F(i, j) * area[i] / area[j]);
+                const bool exact = o_.visibility_method == VisibilityMethod::Exact ||
+                                   (o_.visibility_method == VisibilityMethod::Auto && share > tol);
                 // auto: a pair whose whole F (either direction) is within the per-entry tolerance takes rays, whose
                 // error is then below the tolerance whatever the visible fraction.
                 if (exact) {
@@ -463,8 +452,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                 // A pair that carries a large share of a row dominates that row's visibility error: give it
                 // more samples per side (x2 per side = 16x rays from 2% of the row, x3 = 81x from 10%).
                 const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
-                const VisibleRatio v = visible_ratio(g_, pr.P, *caster_, src, tgt, rays_ * m * m * m * m, b.ray,
-                                                       direct ? &b.cand : nullptr);
+                const VisibleRatio v = visible_ratio(g_, pr.P, *caster_, src, tgt, rays_ * m * m * m * m, b.ray);
                 c.rays += v.rays;
                 c.no_visible_sample += v.no_sample;
                 const double sigma = F(i, j) * v.sigma, ratio = area[i] / area[j];

@@ -1,7 +1,6 @@
 // SIMD pair kernels. This file is compiled three times (AVX-512, AVX2+FMA, baseline) with
 // LAMBERT_ISA_SUFFIX naming the variant; GCC vector extensions of 8 doubles lower to each ISA.
 #include <cmath>
-#include <cstdint>
 #include <cstring>
 
 #include "../atan_reduced.hpp"
@@ -431,43 +430,10 @@ void gather_links(const double* rec, const double* ca, const int* src, const flo
   }
 }
 
-// Segments o_k -> o_k + d_k against closed triangles (Moller-Trumbore, as the brute-force caster in
-// visibility.cpp): a hit needs det != 0, u >= 0, v >= 0, u + v <= 1 and 0 < t < 1 (the open segment). Lanes
-// past count are computed and not written. Stops when every segment is hidden.
-void segments_hidden(const double* const seg[6], int count, const double* tris, int ntris, std::uint8_t* hidden) {
-  for (int k0 = 0; k0 < count; k0 += W) {
-    const int m = count - k0 < W ? count - k0 : W;
-    bool all = true;
-    for (int k = 0; k < m; ++k) all = all && hidden[k0 + k];
-    if (all) continue;
-    const vd ox = load(seg[0] + k0), oy = load(seg[1] + k0), oz = load(seg[2] + k0);
-    const vd dx = load(seg[3] + k0), dy = load(seg[4] + k0), dz = load(seg[5] + k0);
-    vl hit = vl{} != 0;  // all false
-    for (int t = 0; t < ntris; ++t) {
-      const double* T = tris + 9 * t;
-      const double e1x = T[3], e1y = T[4], e1z = T[5], e2x = T[6], e2y = T[7], e2z = T[8];
-      // p = d x e2, det = e1 . p
-      const vd px = dy * e2z - dz * e2y, py = dz * e2x - dx * e2z, pz = dx * e2y - dy * e2x;
-      const vd det = e1x * px + e1y * py + e1z * pz;
-      const vd inv = 1.0 / sel(det != 0, det, splat(1.0));
-      const vd sx = ox - T[0], sy = oy - T[1], sz = oz - T[2];
-      const vd u = (sx * px + sy * py + sz * pz) * inv;
-      // q = s x e1
-      const vd qx = sy * e1z - sz * e1y, qy = sz * e1x - sx * e1z, qz = sx * e1y - sy * e1x;
-      const vd v = (dx * qx + dy * qy + dz * qz) * inv;
-      const vd tt = (e2x * qx + e2y * qy + e2z * qz) * inv;
-      hit = hit | ((det != 0) & (u >= 0) & (u <= 1) & (v >= 0) & (u + v <= 1) & (tt > 0) & (tt < 1));
-    }
-    for (int k = 0; k < m; ++k)
-      if (hit[k]) hidden[k0 + k] = 1;
-  }
-}
-
 }  // namespace
 
 const BatchKernels& LAMBERT_CAT(batch_kernels_, LAMBERT_ISA_SUFFIX)() {
-  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &eval_centroid, &transpose, &gather_links,
-                                 &segments_hidden};
+  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &eval_centroid, &transpose, &gather_links};
   return k;
 }
 
