@@ -181,5 +181,66 @@ TEST(OccluderTree, ClearedPairsMeetNoPatch) {
   EXPECT_EQ(wrong, 0) << "of " << segments << " segments";
 }
 
+
+// The hierarchy's pairs below a pair of clusters walk the occluder tree from the clusters' shaft's frontier
+// (OccluderTree::frontier) instead of its root. On the two rooms with a block, for groups of 6 neighbouring patches
+// (as the hierarchy's small clusters: their joint boxes grown by 1e-9 of the scene) and every pair of patches
+// between two groups, the walk from the frontier must find the same occluders in the same order as the walk from
+// the root, and may_block must agree with and without its hint (yes/no and lists: no tolerance), for frontiers of
+// nodes of up to 1, 4 and 32 occluders.
+TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
+  const mesh::PatchGeometry g = scene();
+  const int n = g.size();
+  std::vector<int> occ(static_cast<size_t>(n));
+  for (int p = 0; p < n; ++p) occ[size_t(p)] = p;
+  const fd::OccluderTree tree(g, occ);
+  const auto box = boxes(g);
+  constexpr int kGroup = 6;
+  const double pad = 1e-9 * 4.6;
+  long long pairs = 0, blocked = 0, differ = 0, frontier_nodes = 0;
+  std::vector<int> front, from_root, from_front;
+  for (int items : {1, 4, 32})
+    for (int ga = 0; ga + kGroup <= n; ga += kGroup)
+      for (int gb = ga + kGroup; gb + kGroup <= n; gb += kGroup) {
+        fd::Box ba, bb;
+        for (int k = 0; k < kGroup; ++k) {
+          ba.add(box[size_t(ga + k)]);
+          bb.add(box[size_t(gb + k)]);
+        }
+        ba.lo.array() -= pad;
+        ba.hi.array() += pad;
+        bb.lo.array() -= pad;
+        bb.hi.array() += pad;
+        fd::Shaft big = fd::make_shaft(ba, bb);
+        big.ni = big.nj = Vec3::Zero();
+        big.oi = big.oj = -INFINITY;
+        big.eps = 1e-10 * 4.6;
+        front.clear();
+        tree.frontier(big, items, front);
+        frontier_nodes += static_cast<long long>(front.size());
+        for (int i = ga; i < ga + kGroup; ++i)
+          for (int j = gb; j < gb + kGroup; ++j) {
+            const fd::Shaft sh = pair_shaft(g, box, i, j);
+            from_root.clear();
+            from_front.clear();
+            tree.collect(sh, i, j, from_root);
+            tree.collect_from(sh, i, j, front, from_front);
+            int hint = from_root.empty() ? -1 : from_root.back();
+            const bool mb = tree.may_block(sh, i, j), mb_front = tree.may_block_from(sh, i, j, front, &hint);
+            ++pairs;
+            blocked += mb;
+            if ((from_root != from_front || mb != mb_front || mb != !from_root.empty()) && ++differ <= 5)
+              ADD_FAILURE() << "pair " << i << ", " << j << " (frontier of nodes <= " << items << " occluders, "
+                            << front.size() << " nodes): " << from_root.size() << " occluders from the root, "
+                            << from_front.size() << " from the frontier; may_block " << mb << " / " << mb_front;
+          }
+      }
+  EXPECT_GT(pairs, 30000);
+  EXPECT_GT(blocked, 1000);
+  EXPECT_GT(pairs - blocked, 1000);
+  EXPECT_GT(frontier_nodes, 0);
+  EXPECT_EQ(differ, 0) << "of " << pairs << " pairs";
+}
+
 }  // namespace
 }  // namespace lambert

@@ -97,11 +97,9 @@ int OccluderTree::build(int begin, int end, int depth) {
   Box b;
   for (int k = begin; k < end; ++k) b.add(boxes_[items_[k]]);
   nodes_[id].box = b;
-  if (end - begin <= 4) {
-    nodes_[id].begin = begin;
-    nodes_[id].end = end;
-    return id;
-  }
+  nodes_[id].begin = begin;
+  nodes_[id].end = end;
+  if (end - begin <= 4) return id;
   // Binned surface-area heuristic (Wald 2007): the split, over 3 axes x 31 bin boundaries of the centroids, that
   // minimises the children's box areas times their counts. Shafts inside a room then visit fewer nodes than with
   // a median split, whose boxes mix a room's walls with the next room's.
@@ -190,13 +188,20 @@ bool polygon_may_meet(const Shaft& s, const Box& box, std::span<const Vec3> poly
 bool OccluderTree::item_may_block(const Shaft& s, int p) const { return polygon_may_meet(s, boxes_[p], g_->polygon(p)); }
 
 // Visits, in tree order (left subtree first), every occluder other than ia and ib that may meet the shaft,
-// until `visit` returns true; returns whether it did.
+// until `visit` returns true; returns whether it did. From the root, or from `roots` (a frontier, in order).
 template <class Visit>
-bool OccluderTree::traverse(const Shaft& s, int ia, int ib, Visit&& visit) const {
+bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const {
   if (nodes_.empty()) return false;
-  int stack[64];
+  // The stack holds at most the roots plus one pending right child per level below them (depth <= 64: build).
+  std::vector<int> heap;
+  int local[128];
+  int* stack = local;
+  if (roots.size() > 64) {
+    heap.resize(roots.size() + 64);
+    stack = heap.data();
+  }
   int top = 0;
-  stack[top++] = 0;
+  for (size_t k = roots.size(); k-- > 0;) stack[top++] = roots[k];
   while (top > 0) {
     const Node& nd = nodes_[stack[--top]];
     if (box_outside(s, nd.box)) continue;
@@ -214,18 +219,45 @@ bool OccluderTree::traverse(const Shaft& s, int ia, int ib, Visit&& visit) const
 }
 
 bool OccluderTree::may_block(const Shaft& s, int ia, int ib, int* hint) const {
+  return may_block_from(s, ia, ib, root(), hint);
+}
+
+void OccluderTree::collect(const Shaft& s, int ia, int ib, std::vector<int>& out) const {
+  collect_from(s, ia, ib, root(), out);
+}
+
+bool OccluderTree::may_block_from(const Shaft& s, int ia, int ib, std::span<const int> from, int* hint) const {
   if (hint && *hint >= 0 && *hint != ia && *hint != ib && item_may_block(s, *hint)) return true;
-  return traverse(s, ia, ib, [&](int p) {
+  return traverse(s, ia, ib, from, [&](int p) {
     if (hint) *hint = p;
     return true;
   });
 }
 
-void OccluderTree::collect(const Shaft& s, int ia, int ib, std::vector<int>& out) const {
-  traverse(s, ia, ib, [&](int p) {
+void OccluderTree::collect_from(const Shaft& s, int ia, int ib, std::span<const int> from,
+                                std::vector<int>& out) const {
+  traverse(s, ia, ib, from, [&](int p) {
     out.push_back(p);
     return false;
   });
+}
+
+void OccluderTree::frontier(const Shaft& s, int items, std::vector<int>& out) const {
+  if (nodes_.empty()) return;
+  int stack[64];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const int id = stack[--top];
+    const Node& nd = nodes_[id];
+    if (box_outside(s, nd.box)) continue;
+    if (nd.left < 0 || nd.end - nd.begin <= items) {
+      out.push_back(id);
+      continue;
+    }
+    stack[top++] = nd.right;
+    stack[top++] = nd.left;
+  }
 }
 
 }  // namespace lambert::formfactor::detail

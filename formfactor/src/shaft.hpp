@@ -54,15 +54,27 @@ class OccluderTree {
   // Every occluder other than ia and ib that may meet the shaft (same test as may_block), appended to out in
   // tree order (deterministic).
   void collect(const Shaft& s, int ia, int ib, std::vector<int>& out) const;
+  // Shafts inside a larger one (the pairs below a pair of clusters) need not walk the tree from its root. The
+  // larger shaft's frontier: the nodes its walk reaches that hold at most `items` occluders (or are leaves), in
+  // walk order. A walk of a shaft inside it reaches only nodes under those, so the *_from versions, which walk
+  // from them, give the same answers as may_block and collect, in the same order, for fewer box tests.
+  void frontier(const Shaft& s, int items, std::vector<int>& out) const;
+  // (An empty frontier: nothing in the larger shaft. root(): the frontier of any shaft, the tree's root.)
+  static std::span<const int> root() {
+    static constexpr int kRoot[1] = {0};
+    return kRoot;
+  }
+  bool may_block_from(const Shaft& s, int ia, int ib, std::span<const int> from, int* hint = nullptr) const;
+  void collect_from(const Shaft& s, int ia, int ib, std::span<const int> from, std::vector<int>& out) const;
 
  private:
   struct Node {
     Box box;
-    int left = -1, right = -1, begin = 0, end = 0;  // leaf if left < 0: items [begin, end)
+    int left = -1, right = -1, begin = 0, end = 0;  // leaf if left < 0; items [begin, end) of the subtree
   };
   int build(int begin, int end, int depth);
   template <class Visit>
-  bool traverse(const Shaft& s, int ia, int ib, Visit&& visit) const;
+  bool traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const;
   bool item_may_block(const Shaft& s, int p) const;
   const mesh::PatchGeometry* g_ = nullptr;
   std::vector<Node> nodes_;
