@@ -6,6 +6,7 @@
 #include <embree3/rtcore.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -57,6 +58,23 @@ struct Planes {
   }
 };
 
+// The open segment o -> o + d meets the closed triangle (A, B, C): Moller-Trumbore in double precision, the hit
+// rule of the brute-force caster below.
+bool segment_meets(const Vec3& o, const Vec3& d, const Vec3& A, const Vec3& B, const Vec3& C) {
+  const Vec3 e1 = B - A, e2 = C - A, p = d.cross(e2);
+  const double det = e1.dot(p);
+  if (det == 0) return false;
+  const double inv = 1.0 / det;
+  const Vec3 s = o - A;
+  const double u = s.dot(p) * inv;
+  if (u < 0 || u > 1) return false;
+  const Vec3 q = s.cross(e1);
+  const double v = d.dot(q) * inv;
+  if (v < 0 || u + v > 1) return false;
+  const double t = e2.dot(q) * inv;
+  return t > 0 && t < 1;
+}
+
 struct IgnoreContext {
   RTCIntersectContext ctx;
   const int* tri_patch;
@@ -65,20 +83,36 @@ struct IgnoreContext {
   // Per ray (indexed by the ray's id) when not null: the pair each ray ignores, instead of (a, b).
   const int* ray_a = nullptr;
   const int* ray_b = nullptr;
+  // The segments of this call (indexed by the ray's id), in double precision, and the triangles by primitive.
+  const Vec3* from = nullptr;
+  const Vec3* to = nullptr;
+  const Vec3* points = nullptr;
+  const std::array<int, 3>* tris = nullptr;
 };
 
+// Hits on the pair's own patches and their planes are ignored. Any other hit Embree reports (in single precision)
+// counts only if the segment meets that triangle in double precision: within float rounding of a segment's ends
+// (a table top touching the wall a ray ends on, a window jamb at the ray's start) Embree reported hits that are
+// not there (6 of the floor plan's 8.5 M rays, each moving an entry by a sixteenth).
 void ignore_filter(const RTCFilterFunctionNArguments* args) {
   const auto* c = reinterpret_cast<const IgnoreContext*>(args->context);
   for (unsigned k = 0; k < args->N; ++k) {
     if (args->valid[k] == 0) continue;
-    const int patch = c->tri_patch[RTCHitN_primID(args->hit, args->N, k)];
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, k);
+    const int patch = c->tri_patch[prim];
+    const unsigned id = RTCRayN_id(args->ray, args->N, k);
     int a = c->a, b = c->b;
     if (c->ray_a) {
-      const unsigned id = RTCRayN_id(args->ray, args->N, k);
       a = c->ray_a[id];
       b = c->ray_b[id];
     }
-    if (c->planes->ignored(patch, a, b)) args->valid[k] = 0;
+    if (c->planes->ignored(patch, a, b)) {
+      args->valid[k] = 0;
+      continue;
+    }
+    const std::array<int, 3>& T = c->tris[prim];
+    if (!segment_meets(c->from[id], c->to[id] - c->from[id], c->points[T[0]], c->points[T[1]], c->points[T[2]]))
+      args->valid[k] = 0;
   }
 }
 
@@ -101,6 +135,16 @@ class EmbreeVisibility final : public Visibility {
     if (!box.isEmpty()) centre_ = box.center();
     planes_ = Planes(g, centre_);
     detail::add_patch_triangles(device_, scene_, g, occluders, centre_, tri_patch_);
+    // The same triangles in double precision, by primitive (add_patch_triangles' order), for the filter.
+    points_ = g.points;
+    tris_.reserve(tri_patch_.size());
+    auto add = [&](int p) {
+      for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) tris_.push_back(g.triangles[k]);
+    };
+    if (occluders.empty())
+      for (int p = 0; p < g.size(); ++p) add(p);
+    else
+      for (int p : occluders) add(p);
     rtcCommitScene(scene_);
   }
   ~EmbreeVisibility() override {
@@ -132,6 +176,8 @@ class EmbreeVisibility final : public Visibility {
     c.planes = &planes_;
     c.a = ignore_a;
     c.b = ignore_b;
+    c.points = points_.data();
+    c.tris = tris_.data();
     constexpr size_t kChunk = 64;
     RTCRay rays[kChunk];
     for (size_t b = 0; b < from.size(); b += kChunk) {
@@ -140,6 +186,8 @@ class EmbreeVisibility final : public Visibility {
         c.ray_a = ray_a + b;
         c.ray_b = ray_b + b;
       }
+      c.from = from.data() + b;
+      c.to = to.data() + b;
       for (size_t k = 0; k < n; ++k) {
         const Vec3 o = from[b + k] - centre_;
         const Vec3 d = to[b + k] - from[b + k];
@@ -167,6 +215,8 @@ class EmbreeVisibility final : public Visibility {
   Vec3 centre_ = Vec3::Zero();  // subtracted from every coordinate before it becomes a float
   Planes planes_;
   std::vector<int> tri_patch_;
+  std::vector<Vec3> points_;               // the geometry's corners (double)
+  std::vector<std::array<int, 3>> tris_;  // per Embree primitive: its triangle's corners in points_
 };
 
 class BruteForceVisibility final : public Visibility {
@@ -184,20 +234,7 @@ class BruteForceVisibility final : public Visibility {
       for (size_t t = 0; t < patch_.size() && !hit; ++t) {
         if (planes_.ignored(patch_[t], ignore_a, ignore_b)) continue;
         const auto& T = g_.triangles[t];
-        const Vec3 &A = g_.points[T[0]], &B = g_.points[T[1]], &C = g_.points[T[2]];
-        // Moller-Trumbore; a hit counts for t strictly inside (0, 1) and the closed triangle.
-        const Vec3 e1 = B - A, e2 = C - A, p = d.cross(e2);
-        const double det = e1.dot(p);
-        if (det == 0) continue;
-        const double inv = 1.0 / det;
-        const Vec3 s = o - A;
-        const double u = s.dot(p) * inv;
-        if (u < 0 || u > 1) continue;
-        const Vec3 q = s.cross(e1);
-        const double v = d.dot(q) * inv;
-        if (v < 0 || u + v > 1) continue;
-        const double tt = e2.dot(q) * inv;
-        hit = tt > 0 && tt < 1;
+        hit = segment_meets(o, d, g_.points[T[0]], g_.points[T[1]], g_.points[T[2]]);
       }
       hidden[r] = hit ? 1 : 0;
     }
