@@ -252,6 +252,29 @@ TEST(FormFactorAssembly, EmbreeCasterMatchesBruteForceOnSegments) {
   EXPECT_GT(hidden, 200);
 }
 
+// Segments passing 1e-9 m beside an occluder's edge: in single precision (Embree's coordinates, relative to the
+// scene's centre: float spacing 6e-8 m here) they lie on the edge, and Embree reported a hit; a hit counts only if
+// the segment meets the triangle in double precision, so the answer is the segment's own. Just outside the edge:
+// free; just inside: blocked; the brute-force caster (double precision) the reference. Exact yes/no answers.
+TEST(FormFactorAssembly, EmbreeHitsWithinFloatRoundingOfAnEdgeFollowTheDoublePrecisionSegment) {
+  const auto g = geometry({rect(2, 0.0, 0.0, 1.0, 0.0, 1.0, true)});  // the square 0 <= x, y <= 1 at z = 0
+  const auto e = make_embree_visibility(g), b = make_brute_force_visibility(g);
+  int checked = 0;
+  for (const double delta : {1e-9, -1e-9, 3e-9, -3e-9})
+    for (const double y : {0.1, 0.37, 0.5, 0.83}) {
+      // Beside the edge x = 1 (outside for delta > 0) and beside the edge y = 0 (outside for delta > 0).
+      for (const auto& [p, q] : {std::pair{Vec3(1 + delta, y, -1), Vec3(1 + delta, y, 1)},
+                                 std::pair{Vec3(y, -delta, -1), Vec3(y, -delta, 1)}}) {
+        const bool expect = delta < 0, brute = b->occluded(p, q, -1, -1), embree = e->occluded(p, q, -1, -1);
+        EXPECT_EQ(brute, expect) << "brute force, segment " << p.transpose() << " -> " << q.transpose();
+        EXPECT_EQ(embree, expect) << "Embree, segment " << p.transpose() << " -> " << q.transpose() << " (delta "
+                                  << delta << ")";
+        ++checked;
+      }
+    }
+  EXPECT_EQ(checked, 32);
+}
+
 // Segments with a pair of ignored patches each, traced in one call (the hierarchy's cluster rays): the same answers
 // as the brute force asked one segment at a time. The segments run between points of two patches (their ends on
 // the ignored patches, as the hierarchy casts them); a third of them end short of the target and ignore the patch

@@ -88,6 +88,8 @@ struct IgnoreContext {
   const Vec3* to = nullptr;
   const Vec3* points = nullptr;
   const std::array<int, 3>* tris = nullptr;
+  const float* inv_height = nullptr;  // per primitive: 1 / the triangle's smallest altitude (1/m)
+  double slack = 0;                   // bound on a float hit point's error at normal incidence (m)
 };
 
 // Hits on the pair's own patches and their planes are ignored. Any other hit Embree reports (in single precision)
@@ -110,9 +112,21 @@ void ignore_filter(const RTCFilterFunctionNArguments* args) {
       args->valid[k] = 0;
       continue;
     }
+    // A hit farther than the float error from the triangle's edges and the segment's ends is a hit in double
+    // precision too: kept without the test (it reads the double-precision corners, which at a million patches
+    // are out of cache). The error grows as the ray grazes the triangle: 1 / cos.
+    const Vec3 from = c->from[id], d = c->to[id] - from;
+    const Vec3 ng(RTCHitN_Ng_x(args->hit, args->N, k), RTCHitN_Ng_y(args->hit, args->N, k),
+                  RTCHitN_Ng_z(args->hit, args->N, k));
+    const double len = d.norm(), cos = std::abs(ng.dot(d)) / (ng.norm() * len);
+    if (cos > 1e-3) {
+      const double err = c->slack / cos, t = RTCRayN_tfar(args->ray, args->N, k);
+      const double u = RTCHitN_u(args->hit, args->N, k), v = RTCHitN_v(args->hit, args->N, k);
+      const double mb = err * c->inv_height[prim], mt = err / len;
+      if (t > mt && t < 1 - mt && u > mb && v > mb && 1 - u - v > mb) continue;
+    }
     const std::array<int, 3>& T = c->tris[prim];
-    if (!segment_meets(c->from[id], c->to[id] - c->from[id], c->points[T[0]], c->points[T[1]], c->points[T[2]]))
-      args->valid[k] = 0;
+    if (!segment_meets(from, d, c->points[T[0]], c->points[T[1]], c->points[T[2]])) args->valid[k] = 0;
   }
 }
 
@@ -145,6 +159,19 @@ class EmbreeVisibility final : public Visibility {
       for (int p = 0; p < g.size(); ++p) add(p);
     else
       for (int p : occluders) add(p);
+    // Float coordinates relative to the centre are off by up to 2^-24 of the largest |coordinate|; Embree's
+    // watertight test adds a few ulps of its translated coordinates. 256 x 2^-24 of the largest coordinate bounds
+    // the hit point's error at normal incidence with a wide margin.
+    double far = 0;
+    for (const Vec3& v : g.points) far = std::max(far, (v - centre_).lpNorm<Eigen::Infinity>());
+    slack_ = 256 * 0x1.0p-24 * far;
+    inv_height_.reserve(tris_.size());
+    for (const auto& T : tris_) {
+      const Vec3 &A = points_[T[0]], &B = points_[T[1]], &C = points_[T[2]];
+      const double twice_area = (B - A).cross(C - A).norm();
+      const double longest = std::max({(B - A).norm(), (C - B).norm(), (A - C).norm()});
+      inv_height_.push_back(twice_area > 0 ? float(longest / twice_area) : INFINITY);
+    }
     rtcCommitScene(scene_);
   }
   ~EmbreeVisibility() override {
@@ -178,6 +205,8 @@ class EmbreeVisibility final : public Visibility {
     c.b = ignore_b;
     c.points = points_.data();
     c.tris = tris_.data();
+    c.inv_height = inv_height_.data();
+    c.slack = slack_;
     constexpr size_t kChunk = 64;
     RTCRay rays[kChunk];
     for (size_t b = 0; b < from.size(); b += kChunk) {
@@ -217,6 +246,8 @@ class EmbreeVisibility final : public Visibility {
   std::vector<int> tri_patch_;
   std::vector<Vec3> points_;               // the geometry's corners (double)
   std::vector<std::array<int, 3>> tris_;  // per Embree primitive: its triangle's corners in points_
+  std::vector<float> inv_height_;          // per Embree primitive: 1 / its smallest altitude (1/m)
+  double slack_ = 0;                       // float error bound of a hit point at normal incidence (m)
 };
 
 class BruteForceVisibility final : public Visibility {
