@@ -37,6 +37,13 @@ fd::Shaft pair_shaft(const mesh::PatchGeometry& g, const std::vector<fd::Box>& b
   return sh;
 }
 
+// Every patch a potential occluder.
+std::vector<int> every_patch(const mesh::PatchGeometry& g) {
+  std::vector<int> occ(static_cast<size_t>(g.size()));
+  for (int p = 0; p < g.size(); ++p) occ[size_t(p)] = p;
+  return occ;
+}
+
 std::vector<fd::Box> boxes(const mesh::PatchGeometry& g) {
   std::vector<fd::Box> box(size_t(g.size()));
   for (int p = 0; p < g.size(); ++p)
@@ -50,9 +57,7 @@ std::vector<fd::Box> boxes(const mesh::PatchGeometry& g) {
 TEST(OccluderTree, MayBlockDoesNotDependOnTheHint) {
   const mesh::PatchGeometry g = scene();
   const int n = g.size();
-  std::vector<int> occ(static_cast<size_t>(n));
-  for (int p = 0; p < n; ++p) occ[static_cast<size_t>(p)] = p;
-  const fd::OccluderTree tree(g, occ);
+  const fd::OccluderTree tree(g, every_patch(g));
   const auto box = boxes(g);
   long long shafts = 0, disagreements = 0;
   for (int i = 0; i < n; ++i)
@@ -85,9 +90,7 @@ TEST(OccluderTree, WallsTouchingTheShaftOnlyOnItsBoundaryDoNotBlock) {
   const auto polys = mesh::shapes::box(Vec3(0, 0, 0), Vec3(2, 1.5, 1), 4, true);
   const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(polys);
   const int n = g.size();
-  std::vector<int> occ(static_cast<size_t>(n));
-  for (int p = 0; p < n; ++p) occ[size_t(p)] = p;
-  const fd::OccluderTree tree(g, occ);
+  const fd::OccluderTree tree(g, every_patch(g));
   const auto box = boxes(g);
   int pairs = 0, flagged = 0;
   for (int i = 0; i < n; ++i)
@@ -128,9 +131,7 @@ TEST(OccluderTree, AnOccluderReachingIntoTheShaftByAHairMayBlock) {
 TEST(OccluderTree, ClearedPairsMeetNoPatch) {
   const mesh::PatchGeometry g = scene();
   const int n = g.size();
-  std::vector<int> occ(static_cast<size_t>(n));
-  for (int p = 0; p < n; ++p) occ[size_t(p)] = p;
-  const fd::OccluderTree tree(g, occ);
+  const fd::OccluderTree tree(g, every_patch(g));
   const auto box = boxes(g);
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(0.02, 1.0);
@@ -191,9 +192,7 @@ TEST(OccluderTree, ClearedPairsMeetNoPatch) {
 TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
   const mesh::PatchGeometry g = scene();
   const int n = g.size();
-  std::vector<int> occ(static_cast<size_t>(n));
-  for (int p = 0; p < n; ++p) occ[size_t(p)] = p;
-  const fd::OccluderTree tree(g, occ);
+  const fd::OccluderTree tree(g, every_patch(g));
   const auto box = boxes(g);
   constexpr int kGroup = 6;
   const double pad = 1e-9 * 4.6;
@@ -207,16 +206,8 @@ TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
           ba.add(box[size_t(ga + k)]);
           bb.add(box[size_t(gb + k)]);
         }
-        ba.lo.array() -= pad;
-        ba.hi.array() += pad;
-        bb.lo.array() -= pad;
-        bb.hi.array() += pad;
-        fd::Shaft big = fd::make_shaft(ba, bb);
-        big.ni = big.nj = Vec3::Zero();
-        big.oi = big.oj = -INFINITY;
-        big.eps = 1e-10 * 4.6;
         front.clear();
-        tree.frontier(big, items, front);
+        tree.frontier(fd::grown_box_shaft(ba, bb, pad, 1e-10 * 4.6), items, front);
         frontier_nodes += static_cast<long long>(front.size());
         for (int i = ga; i < ga + kGroup; ++i)
           for (int j = gb; j < gb + kGroup; ++j) {

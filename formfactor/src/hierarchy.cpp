@@ -505,23 +505,11 @@ class Refiner {
     }
     // Below a small enough pair, the shaft tests of the pairs under it (inside its shaft: their boxes lie in its
     // nodes' boxes) walk the occluder tree from this shaft's frontier instead of its root: the same answers
-    // (OccluderTree::frontier) for fewer box tests. Boxes grown by 1e-9 of the scene: an occluder only touching
-    // this shaft's boundary may, after rounding, count as inside a shaft below it (the shafts nest only in exact
-    // arithmetic); grown, the frontier still reaches it.
+    // (OccluderTree::frontier) for fewer box tests. Boxes grown by 1e-9 of the scene (grown_box_shaft).
     std::vector<int> own;
     const std::vector<int>* pass = from;
     if (!from && occlusion_ && (A.end - A.begin) + (B.end - B.begin) <= kFrontierPatches) {
-      const double pad = 10 * d_.P.scene_eps;
-      detail::Box ba = A.box, bb = B.box;
-      ba.lo.array() -= pad;
-      ba.hi.array() += pad;
-      bb.lo.array() -= pad;
-      bb.hi.array() += pad;
-      detail::Shaft sh = detail::make_shaft(ba, bb);
-      sh.ni = sh.nj = Vec3::Zero();
-      sh.oi = sh.oj = -INFINITY;
-      sh.eps = d_.P.scene_eps;
-      tree_.frontier(sh, kFrontierItems, own);
+      tree_.frontier(detail::grown_box_shaft(A.box, B.box, 10 * d_.P.scene_eps, d_.P.scene_eps), kFrontierItems, own);
       pass = &own;
     }
     const bool split_b = A.leaf() || (!B.leaf() && B.R > A.R);

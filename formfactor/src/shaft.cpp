@@ -46,6 +46,18 @@ Shaft make_shaft(const Box& a, const Box& b) {
   return s;
 }
 
+Shaft grown_box_shaft(Box a, Box b, double pad, double eps) {
+  for (Box* x : {&a, &b}) {
+    x->lo.array() -= pad;
+    x->hi.array() += pad;
+  }
+  Shaft s = make_shaft(a, b);
+  s.ni = s.nj = Vec3::Zero();
+  s.oi = s.oj = -INFINITY;
+  s.eps = eps;
+  return s;
+}
+
 namespace {
 // Strict: a box that only touches the shaft's boundary (a face of the joint box, or a hull plane through edges of
 // the two boxes) is outside. A segment between the two patches (or clusters) reaches such a supporting plane only

@@ -36,6 +36,11 @@ struct Shaft {
   double oi = 0, oj = 0, eps = 0;
 };
 Shaft make_shaft(const Box& a, const Box& b);
+// The shaft between two boxes grown by `pad` on every side, with no patch planes (eps: the scene's plane tolerance):
+// a frontier's shaft (OccluderTree::frontier). Haines-Wallace shafts nest only in exact arithmetic: an occluder that
+// only touches this shaft may, after rounding, count as inside a shaft within it; grown by 1e-9 of the scene, the
+// frontier still reaches it.
+Shaft grown_box_shaft(Box a, Box b, double pad, double eps);
 // False only if no segment of the shaft can meet the polygon (box: the polygon's bounding box) except on the shaft's
 // boundary, where only segments between coplanar patches run: the polygon lies outside or on one of the shaft's
 // planes or its box's faces, or in the closed back half-space of either patch. Conservative.

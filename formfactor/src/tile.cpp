@@ -375,22 +375,12 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
           }
         }
         // The pairs' shaft tests walk the occluder tree from the sub-tile's frontier, not its root: the same
-        // answers for fewer box tests (the boxes grown by 1e-9 of the scene, as the hierarchy's, so that an
-        // occluder touching the sub-tile's shaft is still reached after rounding).
+        // answers for fewer box tests (boxes grown by 1e-9 of the scene: grown_box_shaft).
         std::span<const int> walk = OccluderTree::root();
         if (!sub_clear && o_.cull_occlusion) {
-          const double pad = 10 * pr.P.scene_eps;
-          Box ba = block_box(si, si1), bc = block_box(sj, sj1);
-          ba.lo.array() -= pad;
-          ba.hi.array() += pad;
-          bc.lo.array() -= pad;
-          bc.hi.array() += pad;
-          Shaft ts = make_shaft(ba, bc);
-          ts.ni = ts.nj = Vec3::Zero();
-          ts.oi = ts.oj = -INFINITY;
-          ts.eps = pr.P.scene_eps;
           b.front.clear();
-          tree_.frontier(ts, 32, b.front);
+          tree_.frontier(grown_box_shaft(block_box(si, si1), block_box(sj, sj1), 10 * pr.P.scene_eps, pr.P.scene_eps),
+                         32, b.front);
           walk = b.front;
         }
         for (int i = si; i < si1; ++i)
