@@ -204,14 +204,10 @@ bool OccluderTree::item_may_block(const Shaft& s, int p) const { return polygon_
 template <class Visit>
 bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const {
   if (nodes_.empty()) return false;
-  // The stack holds at most the roots plus one pending right child per level below them (depth <= 64: build).
-  std::vector<int> heap;
-  int local[128];
-  int* stack = local;
-  if (roots.size() > 64) {
-    heap.resize(roots.size() + 64);
-    stack = heap.data();
-  }
+  // The stack holds at most the roots plus one pending right child per level below them (depth <= 64: build). A
+  // frontier of more than 64 nodes is walked from the root instead: the same answers, no allocation per walk.
+  if (roots.size() > 64) roots = root();
+  int stack[128];
   int top = 0;
   for (size_t k = roots.size(); k-- > 0;) stack[top++] = roots[k];
   while (top > 0) {
