@@ -457,6 +457,30 @@ TEST(RealModelsImprint, RoofOverhangingACornerIsSplitWhereverTheModelSits) {
   }
 }
 
+// A wall standing on a roof triangle of udales_shape.obj (face 5235) across its corner b: the cut it leaves runs from
+// edge ab to edge bc, and its ends, placed on the edges, land within rounding of them, on either side. Where the end
+// on bc landed outside, the sliver between it and bc was taken as inside the roof when its rounded centroid fell
+// inside, and became a piece of its own (a zero-area sliver dropped, with a warning). The cut is the one the
+// double-precision contact (tri_tri.cpp) gave there; with it the old centroid test made the sliver. Now the triangles
+// along the outline are inside or outside by the side of its edge they lie on: two pieces, the corner and the rest.
+TEST(RealModelsImprint, CutEndingOnAnEdgeLeavesNoSliver) {
+  const Vec3 a(203.73777799999999, 47.432746999999999, 20), b(203.54399100000001, 46.606566999999998, 20),
+      c(204.13041699999999, 47.015366, 20);
+  const Vec3 on_ab(203.54858634474422, 46.626158520178201, 20), on_bc(203.5687847828942, 46.623850806743491, 20);
+  shapes::Polygons p;
+  p.push_back({a, b, c});  // the roof, facing +z
+  p.push_back({on_ab, on_bc, on_bc + Vec3(0, 0, 1), on_ab + Vec3(0, 0, 1)});
+  const Scene scene = prepare_and_build(soup_from(p), {});
+  EXPECT_EQ(count(scene.report, "imprint_slivers_dropped"), 0) << all_warnings(scene.report);
+  int roof_pieces = 0;
+  double area = 0;
+  for (int k = 0; k < scene.patches(); ++k)
+    if (scene.face_id[k] == 0) ++roof_pieces, area += scene.geometry.area[k];
+  EXPECT_EQ(roof_pieces, 2) << all_warnings(scene.report);
+  // The pieces tile the roof (relative 1e-12: rounding of the areas of polygons 2e2 m from the origin).
+  EXPECT_NEAR(area, 0.5 * (b - a).cross(c - a).norm(), 1e-12 * area);
+}
+
 // Two coplanar faces that overlap (a slab drawn twice, shifted: CAD exports have them) are split along each other's
 // edges, so that no patch is partly under the other; a coplanar neighbour that meets one along an edge without
 // sharing its corners (a T-junction) is not split. The first part fails when the coplanar case is skipped, the

@@ -19,6 +19,7 @@
 #include <tbb/parallel_for.h>
 
 #include "prepare_internal.hpp"
+#include "tri_tri.hpp"
 
 namespace lambert::mesh::detail {
 
@@ -132,7 +133,19 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
           if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) ||
               !may_touch_beyond_shared(tri_vertices[f][i], tri_vertices[g][j], tf, tg))
             continue;
-          // Where exactly (exact constructions, then rounded): is any of it inside both faces?
+          // Where (exact sides, double-precision points): is any of it inside both faces? Planes within 1e-4 rad
+          // of each other (coplanar faces among them) take the exact constructions, then rounded.
+          auto corners3 = [](const K::Triangle_3& t) {
+            std::array<Vec3, 3> q;
+            for (int m = 0; m < 3; ++m) q[size_t(m)] = {t.vertex(m).x(), t.vertex(m).y(), t.vertex(m).z()};
+            return q;
+          };
+          const TriangleContact contact = intersect_triangles(corners3(tf), corners3(tg));
+          if (contact.kind == TriangleContact::kNone || contact.kind == TriangleContact::kPoint) continue;
+          if (contact.kind == TriangleContact::kSegment) {
+            hit = interior_to_both(0.5 * (contact.a + contact.b), f, g);
+            continue;
+          }
           const auto x = CGAL::intersection(exact(tf), exact(tg));
           if (!x) continue;
           Vec3 p;

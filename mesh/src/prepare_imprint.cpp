@@ -28,6 +28,7 @@
 
 #include "prepare_internal.hpp"
 #include "soup_rays.hpp"
+#include "tri_tri.hpp"
 
 namespace lambert::mesh::detail {
 
@@ -102,6 +103,7 @@ struct FaceData {
   Vec3 u, v;              // plane basis, u x v = n
   double thickness = 0;    // largest corner distance from the plane through poly[0] with normal n, plus rounding (m)
   std::vector<KE::Triangle_3> tris;
+  std::vector<std::array<Vec3, 3>> corners3;  // the same triangles' corners (double precision)
   std::vector<std::array<Vec3, 2>> cuts;  // segments to imprint (metres)
 };
 
@@ -211,9 +213,14 @@ void intersect_pair(const FaceData& f, const FaceData& g, double tol, Cuts& cf, 
   }
   if (parallel || separated_by_plane(f, g) || separated_by_plane(g, f)) return;
   std::vector<std::array<Vec3, 2>> found;
-  for (const auto& tf : f.tris)
-    for (const auto& tg : g.tris) {
-      if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) || !CGAL::do_intersect(tf, tg)) continue;
+  for (size_t i = 0; i < f.tris.size(); ++i)
+    for (size_t j = 0; j < g.tris.size(); ++j) {
+      const KE::Triangle_3 &tf = f.tris[i], &tg = g.tris[j];
+      if (!CGAL::do_overlap(tf.bbox(), tg.bbox())) continue;
+      // Exact sides, double-precision points; planes within 1e-4 rad of each other take the exact constructions.
+      const TriangleContact c = intersect_triangles(f.corners3[i], g.corners3[j]);
+      if (c.kind == TriangleContact::kSegment) found.push_back({c.a, c.b});
+      if (c.kind != TriangleContact::kNeedsExact || !CGAL::do_intersect(tf, tg)) continue;
       const auto x = CGAL::intersection(tf, tg);
       if (!x) continue;
       if (const auto* s = boost::get<KE::Segment_3>(&*x)) found.push_back({vec(s->source()), vec(s->target())});
@@ -326,9 +333,27 @@ std::vector<std::vector<int>> split_face(const PolygonSoup& s, int k, const Face
   std::map<CDT::Face_handle, int> region;  // lookups only
   std::vector<CDT::Face_handle> inside;
   std::vector<std::vector<CDT::Face_handle>> regions;
+  // A triangle with an edge of the outline is inside if it lies on the edge's left (the outline runs counter-clockwise
+  // in the face's frame, and a triangle's corners too): decided by the handles, not by a rounded point. The centroid
+  // of a sliver along the outline (a cut's end placed on an edge lands within rounding of it, on either side) fell
+  // on either side of the outline by rounding, and the sliver became a piece of its own.
+  std::map<std::pair<CDT::Vertex_handle, CDT::Vertex_handle>, char> outline_edges;  // lookups only
+  for (size_t r = 0; r < ring.size(); ++r) outline_edges[{ring[r], ring[(r + 1) % ring.size()]}] = 1;
+  auto side_of_outline = [&](const CDT::Face_handle& fh) {  // 1 inside, 0 outside, -1 no edge on the outline
+    for (int i = 0; i < 3; ++i) {
+      const CDT::Vertex_handle a = fh->vertex(CDT::ccw(i)), b = fh->vertex(CDT::cw(i));  // fh lies left of a -> b
+      if (outline_edges.count({a, b})) return 1;
+      if (outline_edges.count({b, a})) return 0;
+    }
+    return -1;
+  };
   for (auto fh = cdt.finite_faces_begin(); fh != cdt.finite_faces_end(); ++fh) {
-    const auto c = CGAL::centroid(fh->vertex(0)->point(), fh->vertex(1)->point(), fh->vertex(2)->point());
-    if (CGAL::bounded_side_2(outline.begin(), outline.end(), c, K()) != CGAL::ON_BOUNDED_SIDE) continue;
+    const int side = side_of_outline(fh);
+    if (side == 0) continue;
+    if (side < 0) {
+      const auto c = CGAL::centroid(fh->vertex(0)->point(), fh->vertex(1)->point(), fh->vertex(2)->point());
+      if (CGAL::bounded_side_2(outline.begin(), outline.end(), c, K()) != CGAL::ON_BOUNDED_SIDE) continue;
+    }
     region[fh] = -1;
     inside.push_back(fh);
   }
@@ -493,7 +518,9 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
     f.thickness += 1e-12 * (f.poly[0].lpNorm<Eigen::Infinity>() + extent) + 1e-300;
     for (const auto& t : triangulate_polygon(f.poly, f.n)) {
       KE::Triangle_3 tri(ke(f.poly[t[0]]), ke(f.poly[t[1]]), ke(f.poly[t[2]]));
-      if (!tri.is_degenerate()) f.tris.push_back(tri);
+      if (tri.is_degenerate()) continue;
+      f.tris.push_back(tri);
+      f.corners3.push_back({f.poly[t[0]], f.poly[t[1]], f.poly[t[2]]});
     }
     if (f.tris.empty()) continue;
     Eigen::AlignedBox3d b;
