@@ -133,8 +133,8 @@ void detect_self_intersections(const PolygonSoup& s, const std::vector<char>& us
           if (!CGAL::do_overlap(tf.bbox(), tg.bbox()) ||
               !may_touch_beyond_shared(tri_vertices[f][i], tri_vertices[g][j], tf, tg))
             continue;
-          // Where (exact sides, double-precision points): is any of it inside both faces? Planes within 1e-4 rad
-          // of each other (coplanar faces among them) take the exact constructions, then rounded.
+          // Where (exact sides, double-precision points): is any of it inside both faces? Coplanar triangles, and
+          // planes or edges within 1e-4 rad of the other's plane, take the exact constructions, then rounded.
           auto corners3 = [](const K::Triangle_3& t) {
             std::array<Vec3, 3> q;
             for (int m = 0; m < 3; ++m) q[size_t(m)] = {t.vertex(m).x(), t.vertex(m).y(), t.vertex(m).z()};
