@@ -681,8 +681,8 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
       if (!check[k] || !rays.has(k)) continue;
       std::mt19937_64 rng(0xD1B54A32D192ED03ull ^ std::uint64_t(k) * 0x9E3779B97F4A7C15ull);
       probe[k] = rays.sample(k, rng);
-      int covered = 0;
-      for (int r = 0; r < kRays; ++r) {
+      int covered = 0, uncovered = 0;
+      for (int r = 0; r < kRays && uncovered <= 1; ++r) {  // two uncovered rays decide it: not hidden
         const Vec3 o = rays.sample(k, rng);
         const Vec3 d = cosine_direction(rays.normal(k), rng);
         skip.assign(1, k);
@@ -699,7 +699,11 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
           if (h.t > first_t + tol) break;
           back = back || !h.front;
         }
-        if (back) ++covered;
+        if (back) {
+          ++covered;
+        } else {
+          ++uncovered;
+        }
       }
       if (covered >= kRays - 1) hidden[k] = 1;
     }
