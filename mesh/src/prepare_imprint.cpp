@@ -217,7 +217,8 @@ void intersect_pair(const FaceData& f, const FaceData& g, double tol, Cuts& cf, 
     for (size_t j = 0; j < g.tris.size(); ++j) {
       const KE::Triangle_3 &tf = f.tris[i], &tg = g.tris[j];
       if (!CGAL::do_overlap(tf.bbox(), tg.bbox())) continue;
-      // Exact sides, double-precision points; planes within 1e-4 rad of each other take the exact constructions.
+      // Exact sides, double-precision points; planes or edges within 1e-4 rad of the other's plane take the exact
+      // constructions (tri_tri.hpp).
       const TriangleContact c = intersect_triangles(f.corners3[i], g.corners3[j]);
       if (c.kind == TriangleContact::kSegment) found.push_back({c.a, c.b});
       if (c.kind != TriangleContact::kNeedsExact || !CGAL::do_intersect(tf, tg)) continue;
