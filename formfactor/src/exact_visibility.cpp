@@ -29,6 +29,10 @@ struct ExactScratch {
   std::vector<Occluder> kept;
   std::vector<std::array<double, 4>> hull;
   std::vector<std::array<double, 2>> uv, hull2;  // projected corners and their convex hull (one convex solid)
+  std::vector<std::array<ClipperLib::cInt, 4>> boxes;  // per projected occluder: x_min, y_min, x_max, y_max
+  std::vector<std::uint8_t> inside;                    // per projected occluder: inside another one (left out)
+  ClipperLib::Paths convex;                            // the projections with repeated corners removed
+  std::vector<std::array<double, 2>> removed;          // per edge: parameter intervals inside other projections
 };
 
 void ExactScratchDeleter::operator()(ExactScratch* s) const { delete s; }
@@ -97,6 +101,119 @@ bool covers(const Vec3& x, std::span<const Vec3> target, const std::vector<Vec3>
     }
   }
   return true;
+}
+
+// True if every corner of `a` lies on the inner (left) side of every edge of the counter-clockwise path `b`, or on
+// it: then `a` lies in b's kernel, inside b. Exact in 64-bit integers: coordinates are within Clipper's loRange
+// (|c| < 2^30), so differences are below 2^31, products below 2^62 and their difference below 2^63.
+bool in_kernel(const ClipperLib::Path& a, const ClipperLib::Path& b) {
+  const size_t m = b.size();
+  for (size_t e = 0; e < m; ++e) {
+    const ClipperLib::IntPoint &p = b[e], &q = b[(e + 1) % m];
+    const long long dx = q.X - p.X, dy = q.Y - p.Y;
+    for (const ClipperLib::IntPoint& c : a)
+      if (dx * (c.Y - p.Y) - dy * (c.X - p.X) < 0) return false;
+  }
+  return true;
+}
+
+__extension__ typedef __int128 Int128;
+
+// The projection `in` (counter-clockwise) without repeated corners, into `out`. False unless it is strictly convex
+// and simple: every turn to the left or straight, at least one to the left, and the edges' x-components change sign
+// exactly twice around it (a polygon winding twice has all its turns to the left too).
+bool strictly_convex(const ClipperLib::Path& in, ClipperLib::Path& out) {
+  out.clear();
+  for (const ClipperLib::IntPoint& q : in)
+    if (out.empty() || q.X != out.back().X || q.Y != out.back().Y) out.push_back(q);
+  while (out.size() > 1 && out.back().X == out[0].X && out.back().Y == out[0].Y) out.pop_back();
+  const size_t m = out.size();
+  if (m < 3) return false;
+  bool left = false;
+  int changes = 0, last = 0;
+  for (size_t k = 0; k < m; ++k) {
+    const ClipperLib::IntPoint &a = out[k], &b = out[(k + 1) % m], &c = out[(k + 2) % m];
+    const long long turn = (b.X - a.X) * (c.Y - b.Y) - (b.Y - a.Y) * (c.X - b.X);  // < 2^63, as in in_kernel
+    if (turn < 0) return false;
+    left = left || turn > 0;
+    const int sx = b.X > a.X ? 1 : b.X < a.X ? -1 : 0;
+    if (sx != 0) {
+      if (last != 0 && sx != last) ++changes;
+      last = sx;
+    }
+  }
+  // The cyclic change from the last nonzero sign back to the first.
+  int first = 0;
+  for (size_t k = 0; k < m && first == 0; ++k) first = out[(k + 1) % m].X > out[k].X ? 1 : out[(k + 1) % m].X < out[k].X ? -1 : 0;
+  if (first != 0 && last != 0 && first != last) ++changes;
+  return left && changes == 2;
+}
+
+// The contour sum (as signed_contour_sum) of the boundary of the union of the strictly convex counter-clockwise
+// integer polygons P[0, count), lifted to 3D by lift(X, Y). The boundary is the union of the polygons' edges without
+// their parts inside another polygon; an edge lying along another polygon's edge is left out where that polygon is
+// on its other side (both sides covered) and kept once, by the lower index, where it is on the same side. Every
+// such decision is exact (64-bit cross products, 128-bit comparisons of their ratios); only the parameters where
+// the kept pieces start and end are rounded (to double), which moves F by ~1e-16 of an edge's contribution.
+template <class Lift>
+double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std::vector<std::array<ClipperLib::cInt, 4>>& box,
+                            const Vec3& x, const Vec3& n, const Lift& lift, std::vector<std::array<double, 2>>& removed) {
+  double total = 0;
+  for (size_t i = 0; i < count; ++i) {
+    const ClipperLib::Path& A = P[i];
+    const size_t m = A.size();
+    for (size_t e = 0; e < m; ++e) {
+      const ClipperLib::IntPoint &p = A[e], &q = A[(e + 1) % m];
+      const long long dx = q.X - p.X, dy = q.Y - p.Y;
+      const ClipperLib::cInt x0 = std::min(p.X, q.X), x1 = std::max(p.X, q.X), y0 = std::min(p.Y, q.Y),
+                             y1 = std::max(p.Y, q.Y);
+      removed.clear();
+      for (size_t j = 0; j < count; ++j) {
+        const auto& b = box[j];
+        if (j == i || x1 < b[0] || x0 > b[2] || y1 < b[1] || y0 > b[3]) continue;
+        // Cyrus-Beck: p + t d inside B where cross(f, p + t d - w0) >= 0 for every edge f = w1 - w0 of B.
+        const ClipperLib::Path& B = P[j];
+        long long lo_n = 0, lo_d = 1, hi_n = 1, hi_d = 1;  // t in [lo_n / lo_d, hi_n / hi_d], denominators > 0
+        int along = 0;  // e lies on the line of an edge of B: +1 same direction, -1 opposite
+        bool empty = false;
+        for (size_t f = 0; f < B.size() && !empty; ++f) {
+          const ClipperLib::IntPoint &w0 = B[f], &w1 = B[(f + 1) % B.size()];
+          const long long fx = w1.X - w0.X, fy = w1.Y - w0.Y;
+          const long long a = fx * (p.Y - w0.Y) - fy * (p.X - w0.X), c = fx * dy - fy * dx;
+          if (c > 0) {  // t >= -a / c
+            if (Int128(-a) * lo_d > Int128(lo_n) * c) lo_n = -a, lo_d = c;
+          } else if (c < 0) {  // t <= a / -c
+            if (Int128(a) * hi_d < Int128(hi_n) * -c) hi_n = a, hi_d = -c;
+          } else if (a < 0) {
+            empty = true;
+          } else if (a == 0) {
+            along = fx * dx + fy * dy > 0 ? 1 : -1;
+          }
+        }
+        if (empty || Int128(lo_n) * hi_d >= Int128(hi_n) * lo_d) continue;  // nothing, or a single point
+        if (along > 0 && i < j) continue;  // the same side: the lower index keeps its copy
+        removed.push_back({double(lo_n) / double(lo_d), double(hi_n) / double(hi_d)});
+      }
+      // The pieces of [0, 1] outside every removed interval.
+      std::sort(removed.begin(), removed.end());
+      double t = 0;
+      auto piece = [&](double t0, double t1) {
+        if (!(t1 > t0)) return;
+        const Vec3 a = lift(double(p.X) + t0 * double(dx), double(p.Y) + t0 * double(dy)) - x;
+        const Vec3 b = lift(double(p.X) + t1 * double(dx), double(p.Y) + t1 * double(dy)) - x;
+        const Vec3 c = a.cross(b - a);
+        const double cn = c.norm();
+        if (cn > 0) total += atan2_pos(cn, a.dot(b)) * (n.dot(c) / cn);
+      };
+      for (const auto& r : removed) {
+        piece(t, std::min(r[0], 1.0));
+        t = std::max(t, r[1]);
+        if (t >= 1) break;
+      }
+      piece(t, 1.0);
+    }
+  }
+  return total;
 }
 
 constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
@@ -237,8 +354,63 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
     }
     if (!ClipperLib::Orientation(path)) ClipperLib::ReversePath(path);
   }
+  // A projection lying inside another one adds nothing to the union: left out (on the floor plan 44 % of the
+  // projections are, mostly furniture seen through a wall's or a table's larger face). Exact in the snapped integer
+  // coordinates: every corner of P_i on the inner side of every edge of P_j (counter-clockwise) puts P_i inside the
+  // kernel of P_j (the intersection of its edges' inner half-planes), a convex set inside P_j. Identical projections:
+  // the later one is kept.
+  if (count > 1) {
+    S.boxes.resize(count);
+    S.inside.assign(count, 0);
+    for (size_t k = 0; k < count; ++k) {
+      auto& b = S.boxes[k];
+      b = {S.subject[k][0].X, S.subject[k][0].Y, S.subject[k][0].X, S.subject[k][0].Y};
+      for (const ClipperLib::IntPoint& q : S.subject[k])
+        b = {std::min(b[0], q.X), std::min(b[1], q.Y), std::max(b[2], q.X), std::max(b[3], q.Y)};
+    }
+    size_t kept = count;
+    for (size_t i = 0; i < count; ++i) {
+      const auto& bi = S.boxes[i];
+      for (size_t j = 0; j < count; ++j) {
+        const auto& bj = S.boxes[j];
+        if (j == i || S.inside[j] || bi[0] < bj[0] || bi[1] < bj[1] || bi[2] > bj[2] || bi[3] > bj[3]) continue;
+        if (in_kernel(S.subject[i], S.subject[j])) {
+          S.inside[i] = 1;
+          --kept;
+          break;
+        }
+      }
+    }
+    if (kept < count) {
+      size_t w = 0;
+      for (size_t k = 0; k < count; ++k) {
+        if (S.inside[k]) continue;
+        if (w != k) {
+          std::swap(S.subject[w], S.subject[k]);
+          std::swap(S.surv[w], S.surv[k]);
+          S.surv_convex[w] = S.surv_convex[k];
+          S.boxes[w] = S.boxes[k];
+        }
+        ++w;
+      }
+      count = w;
+      // One projection left, inside the (convex) target: its contour, as for a single occluder above.
+      if (w == 1 && target_convex) return contour_sum(x, n, S.surv[0]);
+    }
+  }
+  // Convex occluders in front of a convex target: the union's contour from the projections' edges directly (no
+  // Boolean operation; on the floor plan's exact path Clipper and its allocations were two thirds of the time).
+  if (target_convex && count > 1) {
+    bool convex = true;
+    if (S.convex.size() < count) S.convex.resize(count);
+    for (size_t k = 0; k < count && convex; ++k) convex = S.surv_convex[k] && strictly_convex(S.subject[k], S.convex[k]);
+    if (convex) {
+      auto lift = [&](double X, double Y) -> Vec3 { return tc + (X * inv) * u + (Y * inv) * v; };
+      return std::abs(convex_union_contour(S.convex, count, S.boxes, x, n, lift, S.removed)) / (2 * kPi);
+    }
+  }
   S.clipper.Clear();
-  S.clipper.AddPaths(S.subject, ClipperLib::ptSubject, true);
+  for (size_t k = 0; k < count; ++k) S.clipper.AddPath(S.subject[k], ClipperLib::ptSubject, true);
   if (target_convex) {
     S.clipper.Execute(ClipperLib::ctUnion, S.result, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
   } else {

@@ -642,7 +642,7 @@ class Refiner {
     //   on the 10k building, 8 rays doubled the error against dense.)
     // They are drawn and traced a batch at a time and read in order, as one ray at a time would: the same
     // result for any batch size; the rays traced past the one that ends the loop are counted in the statistics.
-    constexpr int kFirstBatch = 8, kBatch = 32;
+    constexpr int kFirstBatch = 2, kSecondBatch = 8, kBatch = 32;
     const int total = std::max(R0, goals.max_rays);
     enum class Stop { kNo, kResult, kRefine };
     auto decide = [&]() {
@@ -680,7 +680,7 @@ class Refiner {
     Stop stop = Stop::kNo;
     for (int k0 = 0, k1 = 0; k0 < total && stop == Stop::kNo; k0 = k1) {
       // 8 rays first (most mixed links are decided by them), then on to R0, then 32 at a time.
-      k1 = std::min(total, k0 == 0 ? kFirstBatch : k0 < R0 ? R0 : k0 + kBatch);
+      k1 = std::min(total, k0 == 0 ? kFirstBatch : k0 < kSecondBatch ? kSecondBatch : k0 < R0 ? R0 : k0 + kBatch);
       loc.ray_from.clear();
       loc.ray_to.clear();
       loc.ray_pa.clear();
