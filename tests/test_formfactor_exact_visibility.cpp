@@ -776,6 +776,12 @@ TEST(ExactVisibilityNumerics, UnionOfConvexProjectionsMatchesClipper) {
   cases.push_back({"nested and repeated", {flat(-0.25, 0.25, -0.25, 0.25, 0.5), flat(-0.125, 0.125, -0.125, 0.125, 0.5),
                                             flat(-0.25, 0.25, -0.25, 0.25, 0.5), flat(-0.0625, 0.3, -0.1, 0.0, 0.25)}});
   cases.push_back({"touching at a corner", {flat(-0.25, 0, -0.25, 0, 0.5), flat(0, 0.25, 0, 0.25, 0.5)}});
+  // From x = 0, a rectangle whose corner reaches 1e-13 into the cone through the target's edge y = -1: clipped to
+  // the cone it is a triangle of that size, one point once snapped, whose edges hold every point (CornellBox-Original:
+  // taken as hiding the whole target, a row 9 % short).
+  cases.push_back({"an occluder clipped to a point",
+                   {Poly{Vec3(0, -0.5 + 1e-13, 0.5), Vec3(0.2, -0.7, 0.5), Vec3(0.2, -0.7, 0.3), Vec3(0, -0.5, 0.3)},
+                    flat(-0.25, 0.25, -0.25, 0.25, 0.5)}});
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> U(0, 1);
   for (int trial = 0; trial < 60; ++trial) {
