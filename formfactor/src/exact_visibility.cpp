@@ -217,6 +217,9 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
 }
 
 constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
+// The inside test and the edges' union compare every projection with every other: above this many, Clipper's sweep
+// (n log n) does the union alone.
+constexpr size_t kMaxPairwise = 64;
 
 }  // namespace
 
@@ -359,7 +362,7 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   // coordinates: every corner of P_i on the inner side of every edge of P_j (counter-clockwise) puts P_i inside the
   // kernel of P_j (the intersection of its edges' inner half-planes), a convex set inside P_j. Identical projections:
   // the later one is kept.
-  if (count > 1) {
+  if (count > 1 && count <= kMaxPairwise) {
     S.boxes.resize(count);
     S.inside.assign(count, 0);
     for (size_t k = 0; k < count; ++k) {
@@ -400,7 +403,7 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   }
   // Convex occluders in front of a convex target: the union's contour from the projections' edges directly (no
   // Boolean operation; on the floor plan's exact path Clipper and its allocations were two thirds of the time).
-  if (target_convex && count > 1) {
+  if (target_convex && count > 1 && count <= kMaxPairwise) {
     bool convex = true;
     if (S.convex.size() < count) S.convex.resize(count);
     for (size_t k = 0; k < count && convex; ++k) convex = S.surv_convex[k] && strictly_convex(S.subject[k], S.convex[k]);
