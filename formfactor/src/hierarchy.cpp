@@ -679,7 +679,7 @@ class Refiner {
     };
     Stop stop = Stop::kNo;
     for (int k0 = 0, k1 = 0; k0 < total && stop == Stop::kNo; k0 = k1) {
-      // 8 rays first (most mixed links are decided by them), then on to R0, then 32 at a time.
+      // 2 rays first (most links refined are decided by them), then up to 8, then on to R0, then 32 at a time.
       k1 = std::min(total, k0 == 0 ? kFirstBatch : k0 < kSecondBatch ? kSecondBatch : k0 < R0 ? R0 : k0 + kBatch);
       loc.ray_from.clear();
       loc.ray_to.clear();
