@@ -25,7 +25,7 @@ struct ExactScratch {
   ClipperLib::Clipper clipper;
   ClipperLib::Paths subject, result;
   ClipperLib::Path clip_path;
-  std::vector<Vec3> lifted, cs, ct, pts;
+  std::vector<Vec3> lifted, cs, ct, pts, pts2;
   std::vector<Occluder> kept;
   std::vector<std::array<double, 4>> hull;
   std::vector<std::array<double, 2>> uv, hull2;  // projected corners and their convex hull (one convex solid)
@@ -512,8 +512,12 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
              std::vector<Occluder>& kept) {
   S.pts.assign(cs.begin(), cs.end());
   S.pts.insert(S.pts.end(), ct.begin(), ct.end());
+  S.pts2.assign(ct.begin(), ct.end());
+  S.pts2.insert(S.pts2.end(), cs.begin(), cs.end());
   S.hull.clear();
-  auto hull_planes = [&](std::span<const Vec3> P, std::span<const Vec3> Q) {
+  // The planes through an edge of P and a corner of Q with every point of P and Q on one side. `pts`: those points,
+  // Q's first (P's corners off the edge lie on one side of such a plane, Q's may lie on both: the test stops sooner).
+  auto hull_planes = [&](std::span<const Vec3> P, std::span<const Vec3> Q, const std::vector<Vec3>& pts) {
     for (size_t k = 0; k < P.size(); ++k) {
       const Vec3 &a = P[k], &b = P[(k + 1) % P.size()];
       for (const Vec3& c : Q) {
@@ -524,7 +528,7 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
         // candidate planes cut the hull).
         const double e = eps * len;
         bool above = false, below = false;
-        for (const Vec3& p : S.pts) {
+        for (const Vec3& p : pts) {
           const double d = m.dot(p - a);
           above = above || d > e;
           below = below || d < -e;
@@ -537,10 +541,11 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
       }
     }
   };
-  hull_planes(cs, ct);
-  hull_planes(ct, cs);
+  hull_planes(cs, ct, S.pts2);
+  hull_planes(ct, cs, S.pts);
   const size_t first = kept.size();
-  for (const Occluder& o : candidates) {
+  for (const Occluder& candidate : candidates) {
+    Occluder o = candidate;
     bool behind_s = true, behind_t = true;
     for (const Vec3& q : o.poly) {
       behind_s = behind_s && ns.dot(q) - os <= eps;
@@ -551,12 +556,17 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
     // at most at their ends, so it blocks nothing. A wall that a target or source patch touches at a corner or an
     // edge (a floor patch against the wall) meets their hull only there; kept, it made every element of the pair
     // "reachable" and its clipped sliver, a rounding residue, spent the pair's point budget.
-    {
+    if (!o.has_unit) {
       const Vec3 nq = mesh::newell_normal(o.poly);
       const double len = nq.norm();
-      if (len > 0) {
-        const Vec3 u = nq / len;
-        const double oq = u.dot(o.poly[0]);
+      o.has_unit = true;
+      o.unit = len > 0 ? Vec3(nq / len) : Vec3::Zero();
+      o.unit_offset = o.unit.dot(o.poly[0]);
+    }
+    {
+      if (o.unit.squaredNorm() > 0) {
+        const Vec3& u = o.unit;
+        const double oq = o.unit_offset;
         double lo = INFINITY, hi = -INFINITY;
         for (const Vec3& p : S.pts) {
           const double d = u.dot(p) - oq;
@@ -585,8 +595,8 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
   for (size_t k = first; k < kept.size(); ++k) {
     const Occluder& o = kept[k];
     if (!o.convex) continue;
-    const Vec3 nq = mesh::newell_normal(o.poly).normalized();
-    const double oq = nq.dot(o.poly[0]);
+    const Vec3& nq = o.unit;  // newell_normal(o.poly).normalized(), as set above
+    const double oq = o.unit_offset;
     bool all = true;
     for (size_t i = 0; i < cs.size() && all; ++i)
       for (size_t j = 0; j < ct.size() && all; ++j) {
@@ -648,12 +658,28 @@ bool critical_line(const Vec3& c, const Vec3& q0, const Vec3& q1, const Vec3& ns
   return std::isfinite(out.p.x()) && std::isfinite(out.p.y()) && std::isfinite(out.p.z());
 }
 
+// True if every corner of `within` lies strictly on one side of the plane through c with normal m: then the line
+// where that plane meets the source's plane passes outside the convex hull of `within`, so it crosses no element
+// there (an element's points lie on one side of it, and crosses() needs them on both). On the source's plane the
+// line's signed distance of a point x is m . (x - c) times a positive factor.
+bool one_side(const Vec3& c, const Vec3& m, std::span<const Vec3> within) {
+  bool pos = true, neg = true;
+  for (const Vec3& x : within) {
+    const double d = m.dot(x - c);
+    pos = pos && d > 0;
+    neg = neg && d < 0;
+  }
+  return pos || neg;
+}
+
 // The central projection of the segment [q0, q1] from c onto the source's plane: its critical line, restricted to the
-// image of the segment where that is finite. Appended to `out` unless it degenerates.
+// image of the segment where that is finite. Appended to `out` unless it degenerates, or unless it cannot cross the
+// convex hull of `within` (empty: no such test).
 void project_critical(const Vec3& c, const Vec3& q0, const Vec3& q1, const Vec3& ns, double os, const Vec3& g,
-                      bool target, double eps, std::vector<Critical>& out) {
+                      bool target, double eps, std::vector<Critical>& out, std::span<const Vec3> within = {}) {
   const double hc = os - ns.dot(c);
   if (!(std::abs(hc) > eps)) return;  // c on the plane: handled by the caller
+  if (!within.empty() && one_side(c, (q0 - c).cross(q1 - c), within)) return;
   Critical L;
   if (!critical_line(c, q0, q1, ns, os, g, target, L)) return;
   const double d0 = ns.dot(q0 - c), d1 = ns.dot(q1 - c);
@@ -839,10 +865,17 @@ constexpr int kMaxInterOccluders = 6;
 
 // The critical lines of the pair (cs -> ct, clipped in front of each other) from its occluders (classify's list for
 // the whole source), appended to `lines`. False (and no lines) above kMaxLineOccluders occluders or kMaxLines lines.
+// With only_crossing, the lines that cannot cross the source (every corner of cs on one side: 95 % of them in the
+// room with a block) are left out. The cap still counts them, as without the test: a pair with more candidates than
+// kMaxLines is computed again in full.
 bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns, double os, const Vec3& nt,
-                       double ot, std::span<const Occluder> pool, double eps, ExactScratch& S, std::vector<Critical>& lines) {
+                       double ot, std::span<const Occluder> pool, double eps, ExactScratch& S, std::vector<Critical>& lines,
+                       bool only_crossing = false) {
   const int root_count = int(pool.size());
   if (root_count > kMaxLineOccluders) return false;
+  const size_t lines_begin = lines.size();
+  size_t candidates = 0;  // lines tried, including those left out as not crossing
+  const std::span<const Vec3> within = only_crossing ? cs : std::span<const Vec3>();
   const Vec3 g = average(cs);
   std::vector<std::vector<Vec3>> occ{size_t(root_count)};
   for (int k = 0; k < root_count; ++k) {
@@ -855,6 +888,7 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
     if (std::abs(ns.dot(c) - os) <= eps) {
       // c on the source's plane: x lines up with c and a point of the segment only within the plane, i.e.
       // on the line through c and a corner that lies on the plane too (a leg's foot and a wall's foot).
+      candidates += m;
       for (const Vec3& q : P)
         if (std::abs(ns.dot(q) - os) <= eps && (q - c).norm() > eps) {
           // The plane through c, q and the source's normal meets the source's plane in the line cq.
@@ -863,7 +897,8 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
         }
       return;
     }
-    for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, g, target, eps, lines);
+    candidates += m;
+    for (size_t k = 0; k < m; ++k) project_critical(c, P[k], P[(k + 1) % m], ns, os, g, target, eps, lines, within);
   };
   // A face of a closed convex solid (convex_solids) matters only through the solid's silhouette: a target corner
   // lines up with a silhouette edge only through the face of that edge it sees from the front (of the edge's two
@@ -888,7 +923,8 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
     for (size_t a = 1; below && above && a + 1 < O.size(); ++a) {  // the plane: the first corner and a non-collinear pair
       Critical L;
       if (critical_line(O[0], O[a], O[a + 1], ns, os, g, false, L)) {
-        lines.push_back(L);
+        ++candidates;
+        if (within.empty() || !one_side(O[0], (O[a] - O[0]).cross(O[a + 1] - O[0]), within)) lines.push_back(L);
         break;
       }
     }
@@ -919,11 +955,16 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
               double lo, hi;
               if (!sight_through(w, B[k], B[(k + 1) % B.size()], ct, lo, hi)) continue;
               const Vec3 e = B[(k + 1) % B.size()] - B[k];
-              project_critical(w, B[k] + lo * e, B[k] + hi * e, ns, os, g, false, eps, lines);
+              ++candidates;
+              project_critical(w, B[k] + lo * e, B[k] + hi * e, ns, os, g, false, eps, lines, within);
             }
           }
-  if (lines.size() > kMaxLines) {
-    lines.clear();
+  if (only_crossing && candidates > kMaxLines) {  // rare: decide the cap on every line, as without the test
+    lines.resize(lines_begin);
+    return critical_lines_of(cs, ct, ns, os, nt, ot, pool, eps, S, lines, false);
+  }
+  if (lines.size() - lines_begin > kMaxLines) {
+    lines.resize(lines_begin);
     return false;
   }
   return true;
@@ -1263,7 +1304,8 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   std::vector<Critical> lines;
   std::vector<int> lpool;  // line lists of the elements: [begin, begin + count) per element
   const bool have_lines =
-      critical_lines_of(cs, ct, ns, os, nt, ot, std::span<const Occluder>(pool.data(), size_t(root_count)), eps, S, lines);
+      critical_lines_of(cs, ct, ns, os, nt, ot, std::span<const Occluder>(pool.data(), size_t(root_count)), eps, S, lines,
+                        true);
   for (size_t k = 0; k < lines.size(); ++k) lpool.push_back(int(k));
   const int root_lines = int(lpool.size());
   // Where an occluder touches the source's plane (a corner or an edge of it on the plane, such as a worktop's top
@@ -1301,12 +1343,21 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       if (touches(v, c[0], c[1], ns, eps)) return &c;
     return nullptr;
   };
+  bool root_classified = false;  // the next push is the convex quad cs itself, classified at the start
+  std::vector<Occluder> parent;  // the pushed element's parent's occluders (classify appends to pool)
   auto push = [&](Elem e, int parent_begin, int parent_count, int parent_lbegin, int parent_lcount, int parent_kind) {
     Leaf l;
     corners.assign(e.v.begin(), e.v.end());
     l.occ_begin = int(pool.size());
-    std::vector<Occluder> parent(pool.begin() + parent_begin, pool.begin() + parent_begin + parent_count);
-    const int outcome = classify(corners, ct, ns, nt, os, ot, parent, eps, S, pool);
+    int outcome = ExactPairResult::kIntegrated;
+    if (root_classified) {  // classify(cs) at the start: the same corners, the same list and outcome
+      root_classified = false;
+      pool.reserve(pool.size() + size_t(parent_count));
+      for (int k = 0; k < parent_count; ++k) pool.push_back(pool[size_t(parent_begin + k)]);
+    } else {
+      parent.assign(pool.begin() + parent_begin, pool.begin() + parent_begin + parent_count);
+      outcome = classify(corners, ct, ns, nt, os, ot, parent, eps, S, pool);
+    }
     l.occ_count = int(pool.size()) - l.occ_begin;
     if (outcome == ExactPairResult::kClear) return;  // F_hidden = 0 on e, exactly
     cur_begin = l.occ_begin, cur_count = l.occ_count;
@@ -1449,6 +1500,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   if (convex_quad) {
     Elem e;
     e.v = {cs[0], cs[1], cs[2], cs[3]};
+    root_classified = true;
     push(e, 0, root_count, 0, root_lines, -1);
   } else {
     std::vector<std::array<int, 3>> tris;

@@ -35,6 +35,11 @@ struct Occluder {
   bool cull = false;
   Vec3 inner = Vec3::Zero();
   double inner_offset = 0;
+  // poly's unit normal (Newell's; zero if it has no area) and unit . poly[0]: set by the exact path's first
+  // classification of the pair, and carried with the copies it hands to the pair's elements.
+  bool has_unit = false;
+  Vec3 unit = Vec3::Zero();
+  double unit_offset = 0;
 };
 
 // F(x -> hidden part of target): x a point with unit normal n; target a planar simple polygon with unit
