@@ -149,6 +149,11 @@ bool strictly_convex(const ClipperLib::Path& in, ClipperLib::Path& out) {
   return left && changes == 2;
 }
 
+constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
+// The inside test and the edges' union compare every projection with every other: above this many, Clipper's sweep
+// (n log n) does the union alone.
+constexpr size_t kMaxPairwise = 64;  // also the width of convex_union_contour's bit sets
+
 // The contour sum (as signed_contour_sum) of the boundary of the union of the strictly convex counter-clockwise
 // integer polygons P[0, count), lifted to 3D by lift(X, Y). The boundary is the union of the polygons' edges without
 // their parts inside another polygon; an edge lying along another polygon's edge is left out where that polygon is
@@ -159,6 +164,17 @@ template <class Lift>
 double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std::vector<std::array<ClipperLib::cInt, 4>>& box,
                             const Vec3& x, const Vec3& n, const Lift& lift, std::vector<std::array<double, 2>>& removed) {
   double total = 0;
+  // Per projection, the others whose boxes meet its box (count <= kMaxPairwise: one bit each); its edges are
+  // tested against those only.
+  static_assert(kMaxPairwise <= 64);
+  std::array<std::uint64_t, kMaxPairwise> near{};
+  for (size_t i = 0; i < count; ++i)
+    for (size_t j = i + 1; j < count; ++j) {
+      const auto &a = box[i], &b = box[j];
+      if (a[2] < b[0] || a[0] > b[2] || a[3] < b[1] || a[1] > b[3]) continue;
+      near[i] |= std::uint64_t(1) << j;
+      near[j] |= std::uint64_t(1) << i;
+    }
   for (size_t i = 0; i < count; ++i) {
     const ClipperLib::Path& A = P[i];
     const size_t m = A.size();
@@ -168,9 +184,10 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
       const ClipperLib::cInt x0 = std::min(p.X, q.X), x1 = std::max(p.X, q.X), y0 = std::min(p.Y, q.Y),
                              y1 = std::max(p.Y, q.Y);
       removed.clear();
-      for (size_t j = 0; j < count; ++j) {
+      for (std::uint64_t bits = near[i]; bits != 0; bits &= bits - 1) {
+        const size_t j = size_t(__builtin_ctzll(bits));
         const auto& b = box[j];
-        if (j == i || x1 < b[0] || x0 > b[2] || y1 < b[1] || y0 > b[3]) continue;
+        if (x1 < b[0] || x0 > b[2] || y1 < b[1] || y0 > b[3]) continue;
         // Cyrus-Beck: p + t d inside B where cross(f, p + t d - w0) >= 0 for every edge f = w1 - w0 of B.
         const ClipperLib::Path& B = P[j];
         long long lo_n = 0, lo_d = 1, hi_n = 1, hi_d = 1;  // t in [lo_n / lo_d, hi_n / hi_d], denominators > 0
@@ -216,10 +233,6 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
   return total;
 }
 
-constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
-// The inside test and the edges' union compare every projection with every other: above this many, Clipper's sweep
-// (n log n) does the union alone.
-constexpr size_t kMaxPairwise = 64;
 
 }  // namespace
 
