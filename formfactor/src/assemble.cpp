@@ -123,6 +123,7 @@ DenseMatrixOperator Assembler::run() {
       }
       if (o_.visibility_method != VisibilityMethod::Rays) {
         merged_ = merge_coplanar_occluders(g_, occ, scale_);
+        tree_.set_groups(merged_.of_patch);
         for (int m : merged_.of_patch) st_.occluders_merged += m >= 0;
         st_.occluder_regions = int(merged_.polys.size());
         st_.convex_solids = int(merged_.solid_centre.size());

@@ -71,7 +71,7 @@ struct TileBuffers {
   std::vector<Vec3> corners_a, corners_b;
   std::vector<int> walls;  // planes that proved sub-tiles of the current tile hidden (tried first)
   int searches = 0;        // full shaft searches for a proof in the current tile
-  std::vector<int> cand, merged_ids;
+  std::vector<int> cand, merged_ids, seen;
   std::vector<int> front;  // the occluder tree's frontier for the current sub-tile's shaft (OccluderTree::frontier)
   std::vector<Occluder> occ;
   int blocker = -1;  // the occluder that blocked the last shaft tested (OccluderTree::may_block's cache)

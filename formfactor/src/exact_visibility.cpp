@@ -1880,15 +1880,17 @@ void set_inner(Occluder& o, const Vec3& n, const Vec3& centre, double eps) {
 }
 }  // namespace
 
+bool in_plane_of(const PatchData& P, double scale, int p, int i) {
+  const double cth = P.nrm[p].dot(P.nrm[i]);
+  if (std::abs(cth) < 1 - 1e-9) return false;
+  return std::abs(P.offset[p] - (cth > 0 ? P.offset[i] : -P.offset[i])) <= 1e-9 * scale;
+}
+
 void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double scale, std::span<const int> candidates,
                     int i, int j, const MergedOccluders& merged, const std::vector<std::uint8_t>& convex,
                     std::vector<int>& merged_ids, std::vector<Occluder>& occ) {
   // Patches in one plane (the back of a two-sided face, coincident faces) never block each other's rays.
-  auto coplanar = [&](int p, int q) {
-    const double cth = P.nrm[p].dot(P.nrm[q]);
-    if (std::abs(cth) < 1 - 1e-9) return false;
-    return std::abs(P.offset[p] - (cth > 0 ? P.offset[q] : -P.offset[q])) <= 1e-9 * scale;
-  };
+  auto coplanar = [&](int p, int q) { return in_plane_of(P, scale, p, q); };
   occ.clear();
   merged_ids.clear();
   // A solid with open facets is one only for pairs behind them (solid_usable); decided once per solid and pair.

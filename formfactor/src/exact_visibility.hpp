@@ -130,9 +130,14 @@ bool solid_usable(const std::vector<std::array<double, 4>>& open, std::span<cons
                   double eps);
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders, double scale);
 
-// The occluders of the pair (i, j) for exact_hidden_pair, from shaft candidates (OccluderTree::collect): those
-// in the plane of i or of j are left out (they block nothing); occluders merged with coplanar neighbours enter
-// once, as their merged polygon. convex: per patch, convex polygon. merged_ids: scratch.
+// True if patch p lies in the plane of patch i (either facing, within 1e-9 * scale): it blocks nothing between i and
+// another patch.
+bool in_plane_of(const PatchData& P, double scale, int p, int i);
+
+// The occluders of the pair (i, j) for exact_hidden_pair, from shaft candidates (OccluderTree::collect, or
+// collect_grouped with the groups of merged.of_patch): those in the plane of i or of j are left out (they block
+// nothing); occluders merged with coplanar neighbours enter once, as their merged polygon. convex: per patch,
+// convex polygon. merged_ids: scratch.
 void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double scale, std::span<const int> candidates,
                     int i, int j, const MergedOccluders& merged, const std::vector<std::uint8_t>& convex,
                     std::vector<int>& merged_ids, std::vector<Occluder>& occ);

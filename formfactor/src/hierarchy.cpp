@@ -267,7 +267,7 @@ struct Local {
   double progress_pending = 0;  // Refiner::progress
   long long progress_calls = 0, links_pending = 0;
   detail::ExactScratchPtr exact = detail::make_exact_scratch();
-  std::vector<int> cand, merged_ids;
+  std::vector<int> cand, merged_ids, seen;
   std::vector<detail::Occluder> occ;
 };
 
@@ -342,6 +342,7 @@ class Refiner {
           convex_.assign(size_t(n), 0);
           for (int p = 0; p < n; ++p) convex_[size_t(p)] = d_.P.kind[p] <= 2;  // triangle, parallelogram, convex quad
           merged_ = detail::merge_coplanar_occluders(g_, occ, scale_);
+          tree_.set_groups(merged_.of_patch);
         }
       }
     }
@@ -755,7 +756,10 @@ class Refiner {
       if (may_block && exact) {
         // As the dense assembly's exact path: F_st minus the integral of what the occluders hide.
         loc.cand.clear();
-        tree_.collect_from(sh, s, t, walk_from(from), loc.cand);
+        tree_.collect_grouped_from(
+            sh, s, t, walk_from(from),
+            [&](int p) { return !detail::in_plane_of(d_.P, scale_, p, s) && !detail::in_plane_of(d_.P, scale_, p, t); },
+            loc.cand, loc.seen);
         detail::pair_occluders(g_, d_.P, scale_, loc.cand, s, t, merged_, convex_, loc.merged_ids, loc.occ);
         const detail::ExactPairResult r = detail::exact_hidden_pair(
             g_.polygon(s), d_.P.nrm[s], g_.area[s], convex_[size_t(s)] != 0, g_.polygon(t), d_.P.nrm[t],

@@ -250,6 +250,57 @@ void OccluderTree::collect_from(const Shaft& s, int ia, int ib, std::span<const 
   });
 }
 
+void OccluderTree::set_groups(const std::vector<int>& group_of) {
+  group_of_ = group_of;
+  node_group_.assign(nodes_.size(), -1);
+  if (group_of.empty()) return;
+  // Children come after their parent (build): bottom-up in reverse order.
+  for (size_t id = nodes_.size(); id-- > 0;) {
+    const Node& nd = nodes_[id];
+    int g = -1;
+    if (nd.left < 0) {
+      g = group_of[size_t(items_[size_t(nd.begin)])];
+      for (int k = nd.begin + 1; k < nd.end && g >= 0; ++k)
+        if (group_of[size_t(items_[size_t(k)])] != g) g = -1;
+    } else if (node_group_[size_t(nd.left)] == node_group_[size_t(nd.right)]) {
+      g = node_group_[size_t(nd.left)];
+    }
+    node_group_[id] = g;
+  }
+}
+
+void OccluderTree::collect_grouped_from(const Shaft& s, int ia, int ib, std::span<const int> roots,
+                                        const std::function<bool(int)>& accept, std::vector<int>& out,
+                                        std::vector<int>& seen) const {
+  seen.clear();
+  if (nodes_.empty()) return;
+  const bool groups = !group_of_.empty() && node_group_.size() == nodes_.size();
+  auto listed = [&](int g) { return g >= 0 && std::find(seen.begin(), seen.end(), g) != seen.end(); };
+  if (roots.size() > 64) roots = root();  // as traverse
+  int stack[128];
+  int top = 0;
+  for (size_t k = roots.size(); k-- > 0;) stack[top++] = roots[k];
+  while (top > 0) {
+    const int id = stack[--top];
+    const Node& nd = nodes_[id];
+    if (groups && listed(node_group_[size_t(id)])) continue;
+    if (box_outside(s, nd.box)) continue;
+    if (nd.left >= 0) {
+      stack[top++] = nd.right;
+      stack[top++] = nd.left;
+      continue;
+    }
+    for (int k = nd.begin; k < nd.end; ++k) {
+      const int p = items_[k];
+      if (p == ia || p == ib) continue;
+      const int g = groups ? group_of_[size_t(p)] : -1;
+      if (listed(g) || !item_may_block(s, p) || !accept(p)) continue;
+      out.push_back(p);
+      if (g >= 0) seen.push_back(g);
+    }
+  }
+}
+
 void OccluderTree::frontier(const Shaft& s, int items, std::vector<int>& out) const {
   if (nodes_.empty()) return;
   int stack[64];

@@ -4,6 +4,7 @@
 // in front of both patches' planes, so an occluder outside either cannot block it.
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -71,6 +72,15 @@ class OccluderTree {
   }
   bool may_block_from(const Shaft& s, int ia, int ib, std::span<const int> from, int* hint = nullptr) const;
   void collect_from(const Shaft& s, int ia, int ib, std::span<const int> from, std::vector<int>& out) const;
+  // Occluders in groups (group_of[p] >= 0: a merged coplanar polygon, see exact_visibility.hpp; -1 alone), for
+  // collect_grouped_from (copied).
+  void set_groups(const std::vector<int>& group_of);
+  // As collect_from, among the occluders `accept` takes, but of each group only the first one found: the others,
+  // and whole subtrees of that group, are not tested. The occluders outside groups come in the same order as from
+  // collect_from, and a group is listed if and only if collect_from would list an accepted member of it. `seen`:
+  // scratch.
+  void collect_grouped_from(const Shaft& s, int ia, int ib, std::span<const int> from,
+                            const std::function<bool(int)>& accept, std::vector<int>& out, std::vector<int>& seen) const;
 
  private:
   struct Node {
@@ -86,6 +96,8 @@ class OccluderTree {
   std::vector<int> items_;  // patch ids
   std::vector<Box> boxes_;  // per item
   std::vector<Vec3> centers_;
+  std::vector<int> group_of_;     // per patch (set_groups)
+  std::vector<int> node_group_;  // per node: the group of all its items, or -1 (set_groups)
 };
 
 }  // namespace lambert::formfactor::detail

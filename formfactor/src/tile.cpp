@@ -413,7 +413,11 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                 if (exact) {
                   const auto t_exact = Clock::now();
                   b.cand.clear();
-                  tree_.collect_from(sh, i, j, walk, b.cand);
+                  // Of a merged polygon, one member is enough (pair_occluders takes the polygon once).
+                  tree_.collect_grouped_from(
+                      sh, i, j, walk,
+                      [&](int p) { return !in_plane_of(pr.P, scale_, p, i) && !in_plane_of(pr.P, scale_, p, j); },
+                      b.cand, b.seen);
                   pair_occluders(g_, pr.P, scale_, b.cand, i, j, merged_, convex_, b.merged_ids, b.occ);
                   // A wall or slab of several occluders hiding the pair entirely: proven without integrating.
                   const double eps = 1e-9 * scale_;
@@ -428,6 +432,11 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                     for (const Occluder& o : b.occ) one_convex = one_convex && o.solid == b.occ[0].solid;
                   }
                   c.plane_tests += !one_convex;
+                  // The plane proof unites every tile of a wall the shaft meets: the candidates in full.
+                  if (!one_convex) {
+                    b.cand.clear();
+                    tree_.collect_from(sh, i, j, walk, b.cand);
+                  }
                   if (!one_convex &&
                       hidden_by_plane(g_.polygon(i), g_.polygon(j), g_, plane_of_, b.cand, eps, *b.sep, touching_ok) >= 0) {
                     ++c.exact_hidden;
