@@ -3,7 +3,9 @@
 // on the thread count.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "../formfactor/src/shaft.hpp"
@@ -231,6 +233,78 @@ TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
   EXPECT_GT(pairs - blocked, 1000);
   EXPECT_GT(frontier_nodes, 0);
   EXPECT_EQ(differ, 0) << "of " << pairs << " pairs";
+}
+
+// The exact path collects a merged polygon's members once (OccluderTree::collect_grouped_from): on the two rooms with
+// a block, with the patches of each wall, floor and block face as one group (their plane's patches; some patches of
+// each left alone, or none) and an `accept` that refuses a patch in three, for pairs of patches: the patches outside
+// groups must come in collect_from's order, filtered by accept, and each group must be listed once exactly when
+// collect_from lists an accepted member of it (lists and sets: no tolerance). Also from a frontier.
+TEST(OccluderTree, GroupedCollectListsEachGroupOnceAndTheRestInOrder) {
+  const mesh::PatchGeometry g = scene();
+  const int n = g.size();
+  fd::OccluderTree tree(g, every_patch(g));
+  const auto box = boxes(g);
+  long long pairs = 0, grouped = 0, differ = 0;
+  // Groups: patches whose planes agree (normal and offset to 1e-9); all of them, then all but every fifth patch.
+  for (int alone : {0, 5}) {
+    std::vector<int> group(size_t(n), -1);
+    std::vector<std::pair<Vec3, double>> planes;
+    for (int p = 0; p < n; ++p) {
+      if (alone > 0 && p % alone == 0) continue;
+      const Vec3 nn = g.normal[p];
+      const double o = nn.dot(g.centroid[p]);
+      int id = -1;
+      for (size_t k = 0; k < planes.size() && id < 0; ++k)
+        if ((planes[k].first - nn).norm() < 1e-9 && std::abs(planes[k].second - o) < 1e-9) id = int(k);
+      if (id < 0) id = int(planes.size()), planes.push_back({nn, o});
+      group[size_t(p)] = id;
+    }
+    tree.set_groups(group);
+    auto accept = [](int p) { return p % 3 != 1; };
+    std::vector<int> all, got, seen, front;
+    for (int i = 0; i < n; i += 3)
+      for (int j = i + 1; j < n; j += 2) {
+        const fd::Shaft sh = pair_shaft(g, box, i, j);
+        all.clear();
+        tree.collect(sh, i, j, all);
+        std::vector<int> want_rest;
+        std::vector<int> want_groups;
+        for (int p : all) {
+          if (!accept(p)) continue;
+          if (group[size_t(p)] < 0) want_rest.push_back(p);
+          else want_groups.push_back(group[size_t(p)]);
+        }
+        std::sort(want_groups.begin(), want_groups.end());
+        want_groups.erase(std::unique(want_groups.begin(), want_groups.end()), want_groups.end());
+        for (int from_frontier = 0; from_frontier < 2; ++from_frontier) {
+          front.clear();
+          if (from_frontier)
+            tree.frontier(fd::grown_box_shaft(box[size_t(i)], box[size_t(j)], 1e-9 * 4.6, 1e-10 * 4.6), 4, front);
+          got.clear();
+          tree.collect_grouped_from(sh, i, j, from_frontier ? std::span<const int>(front) : fd::OccluderTree::root(),
+                                    accept, got, seen);
+          std::vector<int> rest, groups;
+          for (int p : got) {
+            if (group[size_t(p)] < 0) rest.push_back(p);
+            else groups.push_back(group[size_t(p)]);
+          }
+          const size_t listed = groups.size();
+          std::sort(groups.begin(), groups.end());
+          const bool once = std::unique(groups.begin(), groups.end()) == groups.end();
+          ++pairs;
+          grouped += static_cast<long long>(listed);
+          if ((rest != want_rest || groups != want_groups || !once || listed != want_groups.size()) && ++differ <= 5)
+            ADD_FAILURE() << "pair " << i << ", " << j << (from_frontier ? " (from a frontier)" : "") << ": "
+                          << rest.size() << " ungrouped occluders (want " << want_rest.size() << "), " << listed
+                          << " group entries (want " << want_groups.size() << " groups), every " << alone
+                          << "th patch alone";
+        }
+      }
+  }
+  EXPECT_GT(pairs, 10000);
+  EXPECT_GT(grouped, 1000);
+  EXPECT_EQ(differ, 0) << "of " << pairs << " walks";
 }
 
 }  // namespace
