@@ -201,8 +201,10 @@ bool OccluderTree::item_may_block(const Shaft& s, int p) const { return polygon_
 
 // Visits, in tree order (left subtree first), every occluder other than ia and ib that may meet the shaft,
 // until `visit` returns true; returns whether it did. From the root, or from `roots` (a frontier, in order).
-template <class Visit>
-bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const {
+// Subtrees with skip_node(node) and occluders with skip_item(p) are passed over without their tests.
+template <class SkipNode, class SkipItem, class Visit>
+bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, SkipNode&& skip_node,
+                            SkipItem&& skip_item, Visit&& visit) const {
   if (nodes_.empty()) return false;
   // The stack holds at most the roots plus one pending right child per level below them (depth <= 64: build). A
   // frontier of more than 64 nodes is walked from the root instead: the same answers, no allocation per walk.
@@ -211,8 +213,9 @@ bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int>
   int top = 0;
   for (size_t k = roots.size(); k-- > 0;) stack[top++] = roots[k];
   while (top > 0) {
-    const Node& nd = nodes_[stack[--top]];
-    if (box_outside(s, nd.box)) continue;
+    const int id = stack[--top];
+    const Node& nd = nodes_[id];
+    if (skip_node(id) || box_outside(s, nd.box)) continue;
     if (nd.left >= 0) {
       stack[top++] = nd.right;
       stack[top++] = nd.left;
@@ -220,10 +223,16 @@ bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int>
     }
     for (int k = nd.begin; k < nd.end; ++k) {
       const int p = items_[k];
-      if (p != ia && p != ib && item_may_block(s, p) && visit(p)) return true;
+      if (p != ia && p != ib && !skip_item(p) && item_may_block(s, p) && visit(p)) return true;
     }
   }
   return false;
+}
+
+template <class Visit>
+bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const {
+  auto none = [](int) { return false; };
+  return traverse(s, ia, ib, roots, none, none, visit);
 }
 
 bool OccluderTree::may_block(const Shaft& s, int ia, int ib, int* hint) const {
@@ -273,32 +282,17 @@ void OccluderTree::collect_grouped_from(const Shaft& s, int ia, int ib, std::spa
                                         const std::function<bool(int)>& accept, std::vector<int>& out,
                                         std::vector<int>& seen) const {
   seen.clear();
-  if (nodes_.empty()) return;
   const bool groups = !group_of_.empty() && node_group_.size() == nodes_.size();
   auto listed = [&](int g) { return g >= 0 && std::find(seen.begin(), seen.end(), g) != seen.end(); };
-  if (roots.size() > 64) roots = root();  // as traverse
-  int stack[128];
-  int top = 0;
-  for (size_t k = roots.size(); k-- > 0;) stack[top++] = roots[k];
-  while (top > 0) {
-    const int id = stack[--top];
-    const Node& nd = nodes_[id];
-    if (groups && listed(node_group_[size_t(id)])) continue;
-    if (box_outside(s, nd.box)) continue;
-    if (nd.left >= 0) {
-      stack[top++] = nd.right;
-      stack[top++] = nd.left;
-      continue;
-    }
-    for (int k = nd.begin; k < nd.end; ++k) {
-      const int p = items_[k];
-      if (p == ia || p == ib) continue;
-      const int g = groups ? group_of_[size_t(p)] : -1;
-      if (listed(g) || !item_may_block(s, p) || !accept(p)) continue;
-      out.push_back(p);
-      if (g >= 0) seen.push_back(g);
-    }
-  }
+  traverse(
+      s, ia, ib, roots, [&](int node) { return groups && listed(node_group_[size_t(node)]); },
+      [&](int p) { return groups && listed(group_of_[size_t(p)]); },
+      [&](int p) {
+        if (!accept(p)) return false;
+        out.push_back(p);
+        if (groups && group_of_[size_t(p)] >= 0) seen.push_back(group_of_[size_t(p)]);
+        return false;
+      });
 }
 
 void OccluderTree::frontier(const Shaft& s, int items, std::vector<int>& out) const {

@@ -90,6 +90,9 @@ class OccluderTree {
   int build(int begin, int end, int depth);
   template <class Visit>
   bool traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const;
+  template <class SkipNode, class SkipItem, class Visit>
+  bool traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, SkipNode&& skip_node, SkipItem&& skip_item,
+                Visit&& visit) const;
   bool item_may_block(const Shaft& s, int p) const;
   const mesh::PatchGeometry* g_ = nullptr;
   std::vector<Node> nodes_;
