@@ -233,7 +233,6 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
   return total;
 }
 
-
 }  // namespace
 
 double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target, const Vec3& nt,
@@ -576,17 +575,13 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
       o.unit = len > 0 ? Vec3(nq / len) : Vec3::Zero();
       o.unit_offset = o.unit.dot(o.poly[0]);
     }
-    {
-      if (o.unit.squaredNorm() > 0) {
-        const Vec3& u = o.unit;
-        const double oq = o.unit_offset;
-        double lo = INFINITY, hi = -INFINITY;
-        for (const Vec3& p : S.pts) {
-          const double d = u.dot(p) - oq;
-          lo = std::min(lo, d), hi = std::max(hi, d);
-        }
-        if (hi <= eps || lo >= -eps) continue;
+    if (o.unit.squaredNorm() > 0) {
+      double lo = INFINITY, hi = -INFINITY;
+      for (const Vec3& p : S.pts) {
+        const double d = o.unit.dot(p) - o.unit_offset;
+        lo = std::min(lo, d), hi = std::max(hi, d);
       }
+      if (hi <= eps || lo >= -eps) continue;
     }
     bool outside = false;
     for (const auto& h : S.hull) {

@@ -135,7 +135,7 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
 bool in_plane_of(const PatchData& P, double scale, int p, int i);
 
 // The occluders of the pair (i, j) for exact_hidden_pair, from shaft candidates (OccluderTree::collect, or
-// collect_grouped with the groups of merged.of_patch): those in the plane of i or of j are left out (they block
+// collect_grouped_from with the groups of merged.of_patch): those in the plane of i or of j are left out (they block
 // nothing); occluders merged with coplanar neighbours enter once, as their merged polygon. convex: per patch,
 // convex polygon. merged_ids: scratch.
 void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double scale, std::span<const int> candidates,
