@@ -33,6 +33,7 @@ struct ExactScratch {
   std::vector<std::uint8_t> inside;                    // per projected occluder: inside another one (left out)
   ClipperLib::Paths convex;                            // the projections with repeated corners removed
   std::vector<std::array<double, 2>> removed;          // per edge: parameter intervals inside other projections
+  std::vector<std::uint8_t> gone;                      // per occluder of a pair: in another's umbra (left out)
 };
 
 void ExactScratchDeleter::operator()(ExactScratch* s) const { delete s; }
@@ -632,6 +633,78 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
   return ExactPairResult::kIntegrated;
 }
 
+// Occluders that another one hides from every point of the source are left out of the pair's list (a leg behind a
+// table's top, furniture behind a wall's face), with their critical lines. A lies in the umbra of a convex planar B, as
+// seen from the convex hull E of `corners`, when every segment from a corner of E to a corner of A crosses B strictly
+// inside: for convex B, the points x whose segment from a corner c meets B form a convex set (c + t (b - c), b in B,
+// t >= 1), so the corners of A in all of them put A in all of them; and for such an x the points of E's plane whose
+// segment to x meets B form a convex set that holds every corner of E, hence all of E. From every point p of E each
+// point of A then lies behind a point of B on the same ray, inside the cone from p through the target and in front of
+// the target, so A's projection lies inside B's: the union of the projections, and the critical lines of its boundary,
+// are the same without A. Faces of one convex solid are not tested against each other (its silhouette's lines need
+// them). An occluder is tested only against occluders still listed, so every one left out lies in the projection of
+// one kept. Keeps the others in their order; returns how many.
+constexpr size_t kMaxUmbraOccluders = 128;  // the test is quadratic in the occluders
+size_t drop_hidden_occluders(std::span<const Vec3> corners, std::vector<Occluder>& occ, double eps,
+                             std::vector<std::uint8_t>& gone) {
+  const size_t n = occ.size();
+  if (n < 2 || n > kMaxUmbraOccluders) return n;
+  gone.assign(n, 0);
+  size_t dropped = 0;
+  for (size_t a = 0; a < n; ++a) {
+    const Occluder& A = occ[a];
+    for (size_t b = 0; b < n && !gone[a]; ++b) {
+      const Occluder& B = occ[b];
+      if (b == a || gone[b] || !B.convex || !B.has_unit || !(B.unit.squaredNorm() > 0)) continue;
+      if (A.solid >= 0 && A.solid == B.solid) continue;
+      const Vec3& nb = B.unit;
+      const double ob = B.unit_offset;
+      // B's plane strictly between the corners and A (a plane test first: most pairs stop here).
+      double side = 0;
+      bool ok = true;
+      for (const Vec3& c : corners) {
+        const double d = nb.dot(c) - ob;
+        if (!(std::abs(d) > eps) || (side != 0 && (d > 0) != (side > 0))) {
+          ok = false;
+          break;
+        }
+        side = d;
+      }
+      for (size_t k = 0; ok && k < A.poly.size(); ++k) {
+        const double d = nb.dot(A.poly[k]) - ob;
+        ok = std::abs(d) > eps && (d > 0) != (side > 0);
+      }
+      // Every segment from a corner to a corner of A crosses B at least eps inside each of its edges.
+      const size_t m = B.poly.size();
+      for (size_t i = 0; ok && i < corners.size(); ++i) {
+        const Vec3& c = corners[i];
+        const double dc = nb.dot(c) - ob;
+        for (size_t k = 0; ok && k < A.poly.size(); ++k) {
+          const double da = nb.dot(A.poly[k]) - ob;
+          const Vec3 x = c + (A.poly[k] - c) * (dc / (dc - da));
+          for (size_t q = 0; q < m && ok; ++q) {
+            const Vec3 e = B.poly[(q + 1) % m] - B.poly[q];
+            ok = e.cross(x - B.poly[q]).dot(nb) > eps * e.norm();
+          }
+        }
+      }
+      if (ok) {
+        gone[a] = 1;
+        ++dropped;
+      }
+    }
+  }
+  if (dropped == 0) return n;
+  size_t w = 0;
+  for (size_t k = 0; k < n; ++k)
+    if (!gone[k]) {
+      if (w != k) occ[w] = occ[k];
+      ++w;
+    }
+  occ.resize(w);
+  return w;
+}
+
 // A critical line of the pair on the source's plane (discontinuity meshing, Heckbert 1992): from a point x on it
 // a vertex of one polygon (the target or an occluder) lines up with an edge of another, so the hidden part of
 // the target changes its combinatorial structure there; F_hidden(x) is smooth between such lines, except on the
@@ -865,8 +938,10 @@ bool sight_through(const Vec3& c, const Vec3& q0, const Vec3& q1, std::span<cons
 }
 
 // Critical lines are generated only for pairs with at most this many occluders and lines (those between two
-// occluders for at most kMaxInterOccluders: they grow as the square); beyond, the adaptive rule alone resolves
-// the kinks. storey.stl: pairs at the point cap 557 (no lines) -> 181 (lines up to 24 occluders) -> 82 (64).
+// occluders for at most kMaxInterOccluders: they grow as the square); beyond, the adaptive rule resolves the kinks,
+// its elements that see shadow and light checked against their halves (push). storey.stl: pairs at the point cap 557
+// (no lines) -> 181 (lines up to 24 occluders) -> 82 (64). With 16 units instead of 6, a floor plan pair went from 170
+// lines to more than 4,096, hence none.
 constexpr int kMaxLineOccluders = 64;
 constexpr size_t kMaxLines = 4096;
 constexpr int kMaxInterOccluders = 6;
@@ -878,7 +953,8 @@ constexpr int kMaxInterOccluders = 6;
 // kMaxLines is computed again in full.
 bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns, double os, const Vec3& nt,
                        double ot, std::span<const Occluder> pool, double eps, ExactScratch& S, std::vector<Critical>& lines,
-                       bool only_crossing = false) {
+                       bool only_crossing = false, bool* with_inter = nullptr) {
+  if (with_inter) *with_inter = false;
   const int root_count = int(pool.size());
   if (root_count > kMaxLineOccluders) return false;
   const size_t lines_begin = lines.size();
@@ -945,6 +1021,7 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
   for (size_t k = 0; k < occ.size(); ++k) units.push_back(unit(k));
   std::sort(units.begin(), units.end());
   const bool inter = std::unique(units.begin(), units.end()) - units.begin() <= kMaxInterOccluders;
+  if (with_inter) *with_inter = inter;
   // Such an event changes the hidden part only if the line of sight through the corner and the edge meets the
   // target: each edge is cut to the part inside the double cone from the corner through the (convex) target.
   const bool cone = convex_polygon(ct, nt);
@@ -969,10 +1046,11 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
           }
   if (only_crossing && candidates > kMaxLines) {  // rare: decide the cap on every line, as without the test
     lines.resize(lines_begin);
-    return critical_lines_of(cs, ct, ns, os, nt, ot, pool, eps, S, lines, false);
+    return critical_lines_of(cs, ct, ns, os, nt, ot, pool, eps, S, lines, false, with_inter);
   }
   if (lines.size() - lines_begin > kMaxLines) {
     lines.resize(lines_begin);
+    if (with_inter) *with_inter = false;
     return false;
   }
   return true;
@@ -1232,7 +1310,9 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     res.outcome = ExactPairResult::Outcome(root_outcome);
     return res;
   }
-  const int root_count = int(pool.size());
+  // Occluders hidden behind another from all of cs add nothing, and their lines are no events (floorplan.obj: pairs
+  // with fewer than kMaxInterOccluders occluders left then get the lines between them).
+  const int root_count = int(drop_hidden_occluders(cs, pool, eps, S.gone));
   // Hidden by several occluders together (a building's walls, a row of them): proven without integrating.
   // A proof may leave a sliver uncovered (where the target meets a plane the occluders stand on, segments graze it):
   // accepted if F to it is within 1 % of the tolerance, as the pair's error.
@@ -1311,9 +1391,10 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   // an element no line crosses has a smooth integrand, and there a shadow cannot appear or vanish.
   std::vector<Critical> lines;
   std::vector<int> lpool;  // line lists of the elements: [begin, begin + count) per element
+  bool all_lines = false;  // lines between occluders too: every kink of F_hidden lies on one (EEE curves aside)
   const bool have_lines =
       critical_lines_of(cs, ct, ns, os, nt, ot, std::span<const Occluder>(pool.data(), size_t(root_count)), eps, S, lines,
-                        true);
+                        true, &all_lines);
   for (size_t k = 0; k < lines.size(); ++k) lpool.push_back(int(k));
   const int root_lines = int(lpool.size());
   // Where an occluder touches the source's plane (a corner or an edge of it on the plane, such as a worktop's top
@@ -1452,9 +1533,20 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     }
     // A line crosses it and its samples saw both shadow and light (the integrand has a kink or a step between
     // samples, where the embedded rules' difference can be 1e-6 of the true error: a 5-line sliver, estimate 2.6e-14,
-    // error 4.6e-8), or it touches a contact (above): its error is the change from its rule to the sum of its pieces'
-    // rules (the pieces it is split into; they keep their values for when it is split), and its value that sum.
-    if (l.nkids > 0 && ((pick >= 0 && e.kind == 2) || contact)) {
+    // error 4.6e-8), or the pair's lines leave some kinks out (no lines, or none between occluders: an element no
+    // line crosses can still hold a kink where one occluder's edge passes another's corner; floorplan.obj, a wall patch
+    // of face 595 to the floor: estimate 2.6e-9, error 4.8e-6) and its samples saw both, or it touches a contact
+    // (above): its error is the change from its rule to the sum of its pieces' rules (the pieces it is split into;
+    // they keep their values for when it is split), and its value that sum.
+    // (Between occluders: only where e has two occluders that are not faces of one solid.)
+    auto one_solid = [&] {
+      const int s0 = pool[size_t(l.occ_begin)].solid;
+      for (int k = 0; k < l.occ_count; ++k)
+        if (pool[size_t(l.occ_begin + k)].solid != s0) return false;
+      return s0 >= 0;
+    };
+    const bool unmarked = !have_lines || (!all_lines && l.occ_count >= 2 && !one_solid());
+    if (l.nkids > 0 && ((e.kind == 2 && (pick >= 0 || unmarked)) || contact)) {
       double sum = 0;
       for (int k = 0; k < l.nkids; ++k) {
         rule(l.kids[size_t(k)]);
@@ -1475,12 +1567,6 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // silhouette, a convex region whose corners are the solid's, and no gap opens without crossing a critical line
     // (room 16 / 5: 37.6 M -> 20.1 M points, row sums unchanged).
     if ((kind == 0 || kind == 1) && outcome == ExactPairResult::kIntegrated && !e.hidden) {
-      auto one_solid = [&] {
-        const int s0 = pool[size_t(l.occ_begin)].solid;
-        for (int k = 0; k < l.occ_count; ++k)
-          if (pool[size_t(l.occ_begin + k)].solid != s0) return false;
-        return s0 >= 0;
-      };
       bool force;
       // A line crosses it: the shadow's structure changes inside, so samples that all saw the same thing say nothing
       // about a shadow (or a gap) between them, at any size (below kLineForcedArea such an element was trusted to its
