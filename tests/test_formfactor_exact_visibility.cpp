@@ -338,13 +338,14 @@ TEST(ExactVisibilityNumerics, FloorPlanPairBehindMergedWallsMatchesUnmergedOcclu
 
 // Pairs of the shipped floor plan whose critical lines leave out those between occluders (more than
 // kMaxInterOccluders of them): an element can then hold a kink no line marks, and the embedded rules' difference
-// missed it. A wall patch of input face 595 and a floor patch of face 141 (22 occluders): F 3.02818e-3 with an
-// estimated error of 2.6e-9, 4.8e-6 below the value; a wall patch of face 98 and a ceiling patch of face 1199 (10
-// occluders once one hidden behind another is left out): estimate 5.8e-9, error 1.1e-7. Elements whose samples see
+// missed it. A window sill (input face 595) and a ceiling patch (face 141; 22 occluders): F 3.02818e-3 with an
+// estimated error of 2.6e-9, 4.8e-6 below the value; a floor patch (face 98) and an exterior wall's patch (face 1199;
+// 10 occluders once one hidden behind another is left out): estimate 5.8e-9, error 1.1e-7. Elements whose samples see
 // shadow and light in such pairs now take their error from their halves. Occluders as the assembly gives them (merged
 // walls, convex solids). References: the same pair with every patch near it as an occluder (unmerged, no solids:
 // other lines and elements), and the midpoint rule on k x k cells of each triangle of the source with those patches
-// at every centre (independent of the outer rule; its own error at the k used, from k and 2k: 2e-9 and 4.3e-8).
+// at every centre (independent of the outer rule; its own error at the k used, judged from k = 64 to 512: about 2e-9
+// and 4.3e-8).
 TEST(ExactVisibilityNumerics, FloorPlanPairsWithoutLinesBetweenTheirOccludersMatchMidpointRule) {
   const mesh::Scene scene =
       mesh::prepare_and_build(io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj"), {}, {});
@@ -355,7 +356,8 @@ TEST(ExactVisibilityNumerics, FloorPlanPairsWithoutLinesBetweenTheirOccludersMat
   const ff::detail::PatchData P = ff::detail::prepare(g);
   const auto merged = ff::detail::merge_coplanar_occluders(g, ff::potential_occluders(g), scale);
   std::vector<std::uint8_t> convex(size_t(g.size()));
-  for (int p = 0; p < g.size(); ++p) convex[size_t(p)] = P.kind[p] <= 2;  // as the assembly: triangle, parallelogram, convex quad
+  // As the assembly: triangle, parallelogram, convex quad.
+  for (int p = 0; p < g.size(); ++p) convex[size_t(p)] = P.kind[p] <= 2;
   auto scratch = ff::detail::make_exact_scratch();
   struct Case {
     int face_i, face_j, k;

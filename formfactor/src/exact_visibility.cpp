@@ -1534,10 +1534,10 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // A line crosses it and its samples saw both shadow and light (the integrand has a kink or a step between
     // samples, where the embedded rules' difference can be 1e-6 of the true error: a 5-line sliver, estimate 2.6e-14,
     // error 4.6e-8), or the pair's lines leave some kinks out (no lines, or none between occluders: an element no
-    // line crosses can still hold a kink where one occluder's edge passes another's corner; floorplan.obj, a wall patch
-    // of face 595 to the floor: estimate 2.6e-9, error 4.8e-6) and its samples saw both, or it touches a contact
-    // (above): its error is the change from its rule to the sum of its pieces' rules (the pieces it is split into;
-    // they keep their values for when it is split), and its value that sum.
+    // line crosses can still hold a kink where one occluder's edge passes another's corner; floorplan.obj, a window
+    // sill, face 595, to the ceiling: estimate 2.6e-9, error 4.8e-6) and its samples saw both, or it touches a
+    // contact (above): its error is the change from its rule to the sum of its pieces' rules (the pieces it is split
+    // into; they keep their values for when it is split), and its value that sum.
     // (Between occluders: only where e has two occluders that are not faces of one solid.)
     auto one_solid = [&] {
       const int s0 = pool[size_t(l.occ_begin)].solid;
