@@ -1545,8 +1545,9 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
         if (pool[size_t(l.occ_begin + k)].solid != s0) return false;
       return s0 >= 0;
     };
-    const bool unmarked = !have_lines || (!all_lines && l.occ_count >= 2 && !one_solid());
-    if (l.nkids > 0 && ((e.kind == 2 && (pick >= 0 || unmarked)) || contact)) {
+    const bool mixed_unsafe =
+        e.kind == 2 && (pick >= 0 || !have_lines || (!all_lines && l.occ_count >= 2 && !one_solid()));
+    if (l.nkids > 0 && (mixed_unsafe || contact)) {
       double sum = 0;
       for (int k = 0; k < l.nkids; ++k) {
         rule(l.kids[size_t(k)]);
