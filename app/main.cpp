@@ -112,7 +112,8 @@ int main(int argc, char** argv) {
         ->check(CLI::IsMember({"auto", "exact", "rays"}))
         ->capture_default_str();
     sub->add_option("--rays", common.ff.rays_per_pair,
-                    "Visibility rays per pair that may be partially occluded (the rays path of --visibility)")
+                    "Visibility rays per pair that may be partially occluded (the rays path of --visibility; 16x / 81x for pairs "
+                    "carrying 2 % / 10 % of a row, a quarter for those carrying less than 1/(64 N) of it)")
         ->check(Positive)
         ->capture_default_str();
     sub->add_option("--operator", common.op,

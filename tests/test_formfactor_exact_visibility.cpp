@@ -510,6 +510,46 @@ TEST(ExactVisibilityAssembly, ExactAndRaysAgreeWithinTheRayBoundOnRandomScenes) 
   }
 }
 
+// The ray path's row sigma where most partly hidden pairs carry little of their row, and so get a quarter of the rays
+// (sampling.hpp's rays_for_share): a room of 10 x 10 patches per wall around a block, under a plate, 16 rays per
+// pair, against the exact path (tolerance 1e-7). Every row within 5 sigma of the exact one (plus both rows'
+// integration bounds), and over all rows sum (row_rays - row_exact)^2 <= 2 sum sigma^2: the sigmas do not
+// understate the rays' error (1 would be exact on average).
+TEST(ExactVisibilityAssembly, RaySigmaCoversTheRaysErrorWhereMostPairsCarryLittleOfTheirRow) {
+  shapes::Polygons p = shapes::room_with_block(10, 2, Vec3(0.3, 0.35, 0.1), Vec3(0.55, 0.6, 0.4));
+  p.push_back(rect(2, 0.8, 0.5, 0.8, 0.2, 0.5, true));
+  p.push_back(rect(2, 0.8, 0.5, 0.8, 0.2, 0.5, false));
+  const auto g = mesh::PatchGeometry::from_polygons(p);
+  ff::Options ox, orays, open;
+  ox.visibility_method = ff::VisibilityMethod::Exact;
+  ox.tolerance = 1e-7;
+  orays.rays_per_pair = 16;
+  open.visibility = false;
+  ff::Stats sx, sr;
+  const auto Fx = ff::assemble(g, ox, &sx), Fr = ff::assemble(g, orays, &sr), Fo = ff::assemble(g, open);
+  // The scene must hold many partly hidden pairs below the quarter's share 1 / (64 x 16).
+  long small = 0, partial = 0;
+  for (int i = 0; i < g.size(); ++i)
+    for (int j = i + 1; j < g.size(); ++j) {
+      const double o = Fo.matrix()(i, j), x = Fx.matrix()(i, j);
+      if (!(o > 0) || !(x > 1e-6 * o) || !(x < (1 - 1e-6) * o)) continue;
+      ++partial;
+      small += std::max(o, Fo.matrix()(j, i)) < 1.0 / (64 * 16);
+    }
+  ASSERT_GT(small, partial / 3) << small << " of " << partial << " partly hidden pairs below the share";
+  double d2 = 0, s2 = 0;
+  for (int i = 0; i < g.size(); ++i) {
+    const double diff = Fr.row_sum(i) - Fx.row_sum(i), sigma = sr.row_visibility_sigma[size_t(i)];
+    const double allowed = 5 * sigma + sr.row_error_bound[size_t(i)] + sx.row_error_bound[size_t(i)] + 1e-9;
+    EXPECT_LE(std::abs(diff), allowed) << "row " << i << ": rays " << Fr.row_sum(i) << ", exact " << Fx.row_sum(i)
+                                       << ", sigma " << sigma;
+    d2 += diff * diff;
+    s2 += sigma * sigma;
+  }
+  EXPECT_LE(d2, 2 * s2) << "sum of squared row differences " << d2 << " against sum of sigma^2 " << s2 << " ("
+                        << small << " of " << partial << " partly hidden pairs below the share)";
+}
+
 }  // namespace
 }  // namespace lambert
 

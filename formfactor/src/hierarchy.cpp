@@ -777,9 +777,8 @@ class Refiner {
         exact_error = r.error;
       } else if (may_block) {
         ++loc.pair_ray_tested;
-        const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
         const detail::VisibleRatio v =
-            detail::visible_ratio(g_, d_.P, *caster_, s, t, o_.rays_per_pair * m * m * m * m, loc.sb);
+            detail::visible_ratio(g_, d_.P, *caster_, s, t, detail::rays_for_share(o_.rays_per_pair, share), loc.sb);
         loc.rays += v.rays;
         sigma = Fst * v.sigma;
         Fst *= v.ratio;

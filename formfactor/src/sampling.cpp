@@ -98,6 +98,13 @@ void sample_polygon(std::span<const Vec3> poly, const Vec3& normal, int n, std::
   }
 }
 
+int rays_for_share(int R, double share) {
+  if (share >= 0.1) return 81 * R;
+  if (share >= 0.02) return 16 * R;
+  if (share < 1.0 / (64.0 * R)) return std::max(1, R / 4);
+  return R;
+}
+
 VisibleRatio visible_ratio(const mesh::PatchGeometry& g, const PatchData& P, const Visibility& caster, int s, int t,
                            int R, SampleBuffers& b) {
   // R rays between R stratified points on each patch, paired by a random permutation ("padding"): every

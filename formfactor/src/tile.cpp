@@ -467,10 +467,8 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                 }
                 const auto t_rays = Clock::now();
                 ++c.ray_tested;
-                // A pair that carries a large share of a row dominates that row's visibility error: give it
-                // more samples per side (x2 per side = 16x rays from 2% of the row, x3 = 81x from 10%).
-                const int m = share >= 0.1 ? 3 : share >= 0.02 ? 2 : 1;
-                const VisibleRatio v = visible_ratio(g_, pr.P, *caster_, src, tgt, rays_ * m * m * m * m, b.ray);
+                // Rays by the pair's share of its rows (more where it dominates a row's visibility error).
+                const VisibleRatio v = visible_ratio(g_, pr.P, *caster_, src, tgt, rays_for_share(rays_, share), b.ray);
                 c.rays += v.rays;
                 c.no_visible_sample += v.no_sample;
                 const double sigma = F(i, j) * v.sigma, ratio = area[i] / area[j];
