@@ -199,6 +199,7 @@ TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
   constexpr int kGroup = 6;
   const double pad = 1e-9 * 4.6;
   long long pairs = 0, blocked = 0, differ = 0, frontier_nodes = 0;
+  size_t largest = 0;  // frontiers of more than 64 nodes are walked from the frontier too (once from the root)
   std::vector<int> front, from_root, from_front;
   for (int items : {1, 4, 32})
     for (int ga = 0; ga + kGroup <= n; ga += kGroup)
@@ -211,6 +212,7 @@ TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
         front.clear();
         tree.frontier(fd::grown_box_shaft(ba, bb, pad, 1e-10 * 4.6), items, front);
         frontier_nodes += static_cast<long long>(front.size());
+        largest = std::max(largest, front.size());
         for (int i = ga; i < ga + kGroup; ++i)
           for (int j = gb; j < gb + kGroup; ++j) {
             const fd::Shaft sh = pair_shaft(g, box, i, j);
@@ -232,6 +234,7 @@ TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
   EXPECT_GT(blocked, 1000);
   EXPECT_GT(pairs - blocked, 1000);
   EXPECT_GT(frontier_nodes, 0);
+  EXPECT_GT(largest, 64u) << "no frontier of more than 64 nodes";
   EXPECT_EQ(differ, 0) << "of " << pairs << " pairs";
 }
 

@@ -206,24 +206,26 @@ template <class SkipNode, class SkipItem, class Visit>
 bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, SkipNode&& skip_node,
                             SkipItem&& skip_item, Visit&& visit) const {
   if (nodes_.empty()) return false;
-  // The stack holds at most the roots plus one pending right child per level below them (depth <= 64: build). A
-  // frontier of more than 64 nodes is walked from the root instead: the same answers, no allocation per walk.
-  if (roots.size() > 64) roots = root();
-  int stack[128];
-  int top = 0;
-  for (size_t k = roots.size(); k-- > 0;) stack[top++] = roots[k];
-  while (top > 0) {
-    const int id = stack[--top];
-    const Node& nd = nodes_[id];
-    if (skip_node(id) || box_outside(s, nd.box)) continue;
-    if (nd.left >= 0) {
-      stack[top++] = nd.right;
-      stack[top++] = nd.left;
-      continue;
-    }
-    for (int k = nd.begin; k < nd.end; ++k) {
-      const int p = items_[k];
-      if (p != ia && p != ib && !skip_item(p) && item_may_block(s, p) && visit(p)) return true;
+  // The roots in turn, each depth first (left child first): the order of a walk from the tree's root, for a frontier
+  // of any size (one of more than 64 nodes used to be walked from the root instead). The stack holds one pending
+  // right child per level below a root (depth <= 64: build).
+  int stack[72];
+  for (const int r : roots) {
+    int top = 0;
+    stack[top++] = r;
+    while (top > 0) {
+      const int id = stack[--top];
+      const Node& nd = nodes_[id];
+      if (skip_node(id) || box_outside(s, nd.box)) continue;
+      if (nd.left >= 0) {
+        stack[top++] = nd.right;
+        stack[top++] = nd.left;
+        continue;
+      }
+      for (int k = nd.begin; k < nd.end; ++k) {
+        const int p = items_[k];
+        if (p != ia && p != ib && !skip_item(p) && item_may_block(s, p) && visit(p)) return true;
+      }
     }
   }
   return false;
