@@ -257,58 +257,6 @@ TEST(Hierarchy, DeterministicForAnyThreadCount) {
 }
 
 // A build that cannot fit is refused before anything large is allocated, naming the estimate and what to change.
-// The colour channels solved side by side, their products grouped into one pass over the operator's entries
-// (TransportOperator::apply_columns, solver::detail::ProductGroup): every channel's radiance and product count are
-// bit for bit those of the same channel solved alone (a grey scene: one channel, no grouping), with GMRES, BiCGSTAB
-// and Jacobi; and apply_columns of 1 to 5 columns gives each column's apply() to the bit. Room with a block (cluster
-// and leaf links, rays), reflectance and emission different in each channel.
-TEST(Hierarchy, ChannelsSolvedTogetherMatchEachSolvedAlone) {
-  const mesh::PatchGeometry g = polys(mesh::shapes::room_with_block(8, 2));
-  const int n = g.size();
-  HierarchyOptions ho;
-  ho.tolerance = 1e-2;
-  ho.max_reflectance = 0.8;
-  HierarchyStats st;
-  const HierarchicalOperator H = build_hierarchy(g, ho, &st);
-  ASSERT_GT(st.far_links, 0);
-  ASSERT_GT(st.leaf_links, 0);
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(-1, 1);
-  for (int k = 1; k <= 5; ++k) {
-    Eigen::MatrixXd X(n, k), Y(n, k);
-    for (int c = 0; c < k; ++c)
-      for (int i = 0; i < n; ++i) X(i, c) = (i + c) % 5 == 0 ? 0.0 : u(rng);  // zeros: skipped sources
-    H.apply_columns(X, Y);
-    for (int c = 0; c < k; ++c) {
-      Eigen::VectorXd y(n);
-      H.apply(X.col(c), y);
-      for (int i = 0; i < n; ++i) ASSERT_EQ(Y(i, c), y[i]) << k << " columns, column " << c << ", row " << i;
-    }
-  }
-  ColorField rho(n, 3), Le = ColorField::Zero(n, 3);
-  for (int i = 0; i < n; ++i) {
-    rho.row(i) << 0.2 + 0.1 * (i % 3), 0.5, 0.8 - 0.05 * (i % 2);
-    if (i % 7 == 0) Le.row(i) << 1.0, 0.5 + 0.1 * (i % 3), 2.0;
-  }
-  for (const solver::Method m : {solver::Method::GMRES, solver::Method::BiCGSTAB, solver::Method::Jacobi}) {
-    solver::Options so;
-    so.method = m;
-    so.tolerance = 1e-10;
-    so.max_iterations = 1000;
-    const solver::Solution all = solver::solve(H, g.area, rho, Le, so);
-    ASSERT_EQ(all.channels.size(), 3u);
-    for (int c = 0; c < 3; ++c) {
-      const ColorField rc = rho.col(c).replicate(1, 3), lc = Le.col(c).replicate(1, 3);
-      const solver::Solution one = solver::solve(H, g.area, rc, lc, so);
-      ASSERT_EQ(one.channels.size(), 1u) << "a grey scene solves one channel";
-      EXPECT_EQ(all.channels[size_t(c)].matvecs, one.channels[0].matvecs) << solver::to_string(m) << " channel " << c;
-      EXPECT_EQ(all.channels[size_t(c)].stop, one.channels[0].stop) << solver::to_string(m) << " channel " << c;
-      for (int i = 0; i < n; ++i)
-        ASSERT_EQ(all.radiance(i, c), one.radiance(i, 0)) << solver::to_string(m) << " channel " << c << " patch " << i;
-    }
-  }
-}
-
 TEST(Hierarchy, RefusesWhenEstimateExceedsMemory) {
   const mesh::PatchGeometry g = polys(mesh::shapes::box(Vec3::Zero(), Vec3::Ones(), 20, true));
   HierarchyOptions ho;

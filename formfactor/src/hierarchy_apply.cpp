@@ -125,23 +125,14 @@ void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
 // first touching them on every product cost more than the arithmetic).
 struct HierarchicalOperator::Impl::Scratch {
   std::vector<double> rec, acc;
-  std::vector<double> z;   // per leaf block, n x k values: sum over its rows s of F_st A_s x_s, per target t and column
-  std::vector<double> xi;  // the k columns of x interleaved (k > 1)
+  std::vector<double> z;  // per leaf block, n values: sum over its rows s of F_st A_s x_s, per target t
 };
 HierarchicalOperator::Impl::~Impl() = default;
 
-namespace {
-constexpr int kMaxColumns = 4;  // columns per pass over the leaf entries (apply_columns)
-}  // namespace
-
-// y_c = F x_c for k <= kMaxColumns columns (n contiguous values each). Per column the same operations in the same
-// order as a product of that column alone: the far links per column (pull, gather, push), the far part stored in
-// y_c; then one pass over the leaf entries for all columns (the columns interleaved), each y_c[i] summed as
-// far part + its own entries in stored order + the transposed blocks in block order.
-void HierarchicalOperator::product(const double* const* x, double* const* y, int k) const {
+void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
   const Impl& d = *d_;
   const int n = d.n, nn = int(d.nodes.size());
-  if (n == 0 || k == 0) return;
+  if (n == 0) return;
   const mesh::PatchGeometry& g = *d.g;
   const detail::PatchData& P = d.P;
   std::unique_ptr<Impl::Scratch> S;
@@ -156,103 +147,54 @@ void HierarchicalOperator::product(const double* const* x, double* const* y, int
     S = std::make_unique<Impl::Scratch>();
     S->rec.resize(size_t(nn) * kRec);
     S->acc.resize(size_t(nn) * kAcc);
-    for (int j = 0; j < nn; ++j) std::copy_n(d.nodes[size_t(j)].c.data(), 3, S->rec.data() + size_t(j) * kRec);
+    for (int k = 0; k < nn; ++k) std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rec.data() + size_t(k) * kRec);
+    S->z.resize(size_t(std::max(0, int(d.leaf_blocks.size()) - 1)) * size_t(n));
   }
-  const int blocks = std::max(0, int(d.leaf_blocks.size()) - 1);
-  if (S->z.size() < size_t(blocks) * size_t(n) * size_t(k)) S->z.resize(size_t(blocks) * size_t(n) * size_t(k));
   double* rec = S->rec.data();
   double* acc = S->acc.data();
+  pull(d, x, rec, 0);
+  // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
+  // stored order (deterministic for any thread count).
   const detail::BatchKernels& K = detail::batch_kernels();
-  for (int c = 0; c < k; ++c) {
-    pull(d, Eigen::Map<const Eigen::VectorXd>(x[c], n), rec, 0);
-    // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
-    // stored order (deterministic for any thread count).
-    tbb::parallel_for(tbb::blocked_range<int>(0, nn, 256), [&](const tbb::blocked_range<int>& r) {
-      for (int j = r.begin(); j < r.end(); ++j) {
-        double* out = acc + size_t(j) * kAcc;
-        std::fill_n(out, kAcc, 0.0);
-        const std::int64_t e0 = d.far_off[j], e1 = d.far_off[j + 1];
-        if (e0 < e1)
-          K.gather_links(rec, d.nodes[size_t(j)].c.data(), d.far_src.data() + e0, d.far_vis.data() + e0, e1 - e0, out);
-      }
-    });
-    push(d, acc, 0);
-    // The far part at the leaves: n_i . (g + H : M_i / 2) (the patch's own extent).
-    double* yc = y[c];
-    tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
-      for (int i = r.begin(); i < r.end(); ++i) {
-        const double* ri = acc + size_t(d.leaf_of[i]) * kAcc;
-        Vec3 gi = Eigen::Map<const Vec3>(ri);
-        const Eigen::Map<const Mat36> H(ri + 12);
-        for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kMult[kl] * P.M[i][kl] * H.col(kl);
-        yc[i] = g.normal[i].dot(gi);
-      }
-    });
-  }
-  // The columns interleaved (x_c[t] at xi[t k + c]) for the leaf pass's gather.
-  const double* xi = x[0];
-  if (k > 1) {
-    S->xi.resize(size_t(n) * size_t(k));
-    for (int t = 0; t < n; ++t)
-      for (int c = 0; c < k; ++c) S->xi[size_t(t) * size_t(k) + size_t(c)] = x[c][t];
-    xi = S->xi.data();
-  }
+  tbb::parallel_for(tbb::blocked_range<int>(0, nn, 256), [&](const tbb::blocked_range<int>& r) {
+    for (int k = r.begin(); k < r.end(); ++k) {
+      double* out = acc + size_t(k) * kAcc;
+      std::fill_n(out, kAcc, 0.0);
+      const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
+      if (e0 < e1) K.gather_links(rec, d.nodes[size_t(k)].c.data(), d.far_src.data() + e0, d.far_vis.data() + e0, e1 - e0, out);
+    }
+  });
+  push(d, acc, 0);
   // The leaf pairs' transposed entries F_ts = F_st A_s / A_t: each fixed block of source rows scatters into its
   // own array (blocks in parallel), summed below in block order.
+  const int blocks = std::max(0, int(d.leaf_blocks.size()) - 1);
   tbb::parallel_for(tbb::blocked_range<int>(0, blocks, 1), [&](const tbb::blocked_range<int>& r) {
     for (int b = r.begin(); b < r.end(); ++b) {
-      double* z = S->z.data() + size_t(b) * size_t(n) * size_t(k);
-      std::fill_n(z, size_t(n) * size_t(k), 0.0);
+      double* z = S->z.data() + size_t(b) * size_t(n);
+      std::fill_n(z, n, 0.0);
       for (int s = d.leaf_blocks[size_t(b)]; s < d.leaf_blocks[size_t(b) + 1]; ++s) {
-        double v[kMaxColumns];
-        bool any = false;
-        for (int c = 0; c < k; ++c) any = (v[c] = g.area[s] * x[c][s]) != 0 || any;
-        if (!any) continue;
-        for (std::int64_t e = d.leaf_off[s]; e < d.leaf_off[s + 1]; ++e) {
-          double* zt = z + size_t(d.leaf_src[e]) * size_t(k);
-          const double f = d.leaf_F[e];
-          for (int c = 0; c < k; ++c)
-            if (v[c] != 0) zt[c] += f * v[c];
-        }
+        const double v = g.area[s] * x[s];
+        if (v == 0) continue;
+        for (std::int64_t e = d.leaf_off[s]; e < d.leaf_off[s + 1]; ++e) z[d.leaf_src[e]] += d.leaf_F[e] * v;
       }
     }
   });
-  // Leaves: the far part plus the exact entries, both directions.
+  // Leaves: n_i . (g + H : M_i / 2) (the patch's own extent) plus the exact entries, both directions.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
-      double s[kMaxColumns], in[kMaxColumns];
-      for (int c = 0; c < k; ++c) s[c] = y[c][i], in[c] = 0;
-      for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) {
-        const double f = d.leaf_F[e];
-        const double* xt = xi + size_t(d.leaf_src[e]) * size_t(k);
-        for (int c = 0; c < k; ++c) s[c] += f * xt[c];
-      }
-      for (int b = 0; b < blocks; ++b) {
-        const double* zb = S->z.data() + (size_t(b) * size_t(n) + size_t(i)) * size_t(k);
-        for (int c = 0; c < k; ++c) in[c] += zb[c];
-      }
-      for (int c = 0; c < k; ++c) y[c][i] = s[c] + in[c] / g.area[i];
+      const double* ri = acc + size_t(d.leaf_of[i]) * kAcc;
+      Vec3 gi = Eigen::Map<const Vec3>(ri);
+      const Eigen::Map<const Mat36> H(ri + 12);
+      for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kMult[kl] * P.M[i][kl] * H.col(kl);
+      double s = g.normal[i].dot(gi);
+      for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) s += d.leaf_F[e] * x[d.leaf_src[e]];
+      double in = 0;
+      for (int b = 0; b < blocks; ++b) in += S->z[size_t(b) * size_t(n) + size_t(i)];
+      y[i] = s + in / g.area[i];
     }
   });
   std::lock_guard lock(d.scratch_mutex);
   d.scratch.push_back(std::move(S));
-}
-
-void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
-  const double* xs[1] = {x.data()};
-  double* ys[1] = {y.data()};
-  product(xs, ys, 1);
-}
-
-void HierarchicalOperator::apply_columns(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Ref<Eigen::MatrixXd> y) const {
-  LAMBERT_CHECK(x.rows() == d_->n && y.rows() == d_->n && x.cols() == y.cols(), "apply_columns: shapes");
-  for (Eigen::Index c0 = 0; c0 < x.cols(); c0 += kMaxColumns) {
-    const int k = int(std::min<Eigen::Index>(kMaxColumns, x.cols() - c0));
-    const double* xs[kMaxColumns];
-    double* ys[kMaxColumns];
-    for (int c = 0; c < k; ++c) xs[c] = x.col(c0 + c).data(), ys[c] = y.col(c0 + c).data();
-    product(xs, ys, k);
-  }
 }
 
 void HierarchicalOperator::for_each_in_row(int i, const std::function<void(int j, double F)>& f) const {

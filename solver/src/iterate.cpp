@@ -342,61 +342,6 @@ ChannelResult gmres(Product& F, const VectorXd& rho, const VectorXd& Le, VectorX
 
 }  // namespace
 
-ProductGroup::ProductGroup(const formfactor::TransportOperator& F, int members)
-    : F_(F), active_(members), x_(size_t(members), nullptr), y_(size_t(members), nullptr) {}
-
-void ProductGroup::apply(int member, const double* x, double* y) {
-  std::unique_lock lock(mutex_);
-  x_[size_t(member)] = x;
-  y_[size_t(member)] = y;
-  ++waiting_;
-  const long generation = generation_;
-  if (waiting_ == active_) run();
-  else done_.wait(lock, [&] { return generation_ != generation; });
-  if (error_) std::rethrow_exception(error_);
-}
-
-void ProductGroup::leave() {
-  std::unique_lock lock(mutex_);
-  --active_;
-  if (waiting_ > 0 && waiting_ == active_) run();
-}
-
-void ProductGroup::run() {
-  const int n = F_.size();
-  std::vector<int> members;
-  for (size_t m = 0; m < x_.size(); ++m)
-    if (x_[m]) members.push_back(int(m));
-  const int k = int(members.size());
-  error_ = nullptr;
-  try {
-    X_.resize(n, k);
-    Y_.resize(n, k);
-    for (int c = 0; c < k; ++c) X_.col(c) = Eigen::Map<const VectorXd>(x_[size_t(members[size_t(c)])], n);
-    F_.apply_columns(X_, Y_);
-    for (int c = 0; c < k; ++c) Eigen::Map<VectorXd>(y_[size_t(members[size_t(c)])], n) = Y_.col(c);
-  } catch (...) {
-    error_ = std::current_exception();
-  }
-  std::fill(x_.begin(), x_.end(), nullptr);
-  std::fill(y_.begin(), y_.end(), nullptr);
-  waiting_ = 0;
-  ++generation_;
-  done_.notify_all();
-}
-
-GroupedOperator::GroupedOperator(ProductGroup& group, int member) : group_(group), member_(member) {}
-int GroupedOperator::size() const { return group_.op().size(); }
-void GroupedOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
-  group_.apply(member_, x.data(), y.data());
-}
-double GroupedOperator::row_dot(int i, const Eigen::Ref<const Eigen::VectorXd>& x) const {
-  return group_.op().row_dot(i, x);
-}
-double GroupedOperator::diagonal(int i) const { return group_.op().diagonal(i); }
-double GroupedOperator::row_sum(int i) const { return group_.op().row_sum(i); }
-bool GroupedOperator::has_rows() const { return group_.op().has_rows(); }
-
 ChannelResult iterate(Method method, const TransportOperator& F, const VectorXd& rho, const VectorXd& Le,
                       VectorXd& L, VectorXd& FL, const Options& options, int channel) {
   Product product{F};

@@ -5,12 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
-#include <array>
-#include <exception>
-#include <mutex>
 #include <sstream>
-#include <thread>
-#include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -160,105 +155,48 @@ Solution Solver::solve(const ColorField& rho, const ColorField& Le, const Option
                       options.initial_guess.col(0) == options.initial_guess.col(2)));
   const int channels = grey ? 1 : 3;
   const double pi = std::numbers::pi;
-  // Per channel: the channel it copies (-1: none), the scaling, and the system. The system is linear: solved for
-  // Le / s with s the power of two nearest below max Le (exact scaling, no rounding), then scaled back. Emission of
-  // 1e-170 or 1e160 W m^-2 sr^-1 would otherwise underflow or overflow in the squared norms of the residuals
-  // (residual NaN, "divergence").
-  struct Channel {
-    int same = -1;
-    double scale = 1;
-    VectorXd r, e, L, FL;
-    ChannelReport report;
-    std::exception_ptr error;
-  };
-  std::array<Channel, 3> ch;
-  std::vector<int> todo;  // channels to iterate
-  for (int c = 0; c < channels; ++c) {
-    Channel& w = ch[size_t(c)];
-    for (int e = 0; e < c && w.same < 0; ++e)
-      if (rho.col(e) == rho.col(c) && Le.col(e) == Le.col(c) &&
-          (options.initial_guess.size() == 0 || options.initial_guess.col(e) == options.initial_guess.col(c)))
-        w.same = e;
-    if (w.same >= 0) continue;
-    const double emax = Le.col(c).maxCoeff();
-    w.scale = emax > 0 ? std::ldexp(1.0, std::ilogb(emax)) : 1.0;
-    w.r = rho.col(c);
-    w.e = Le.col(c) / w.scale;
-    w.L = options.initial_guess.size() ? VectorXd(options.initial_guess.col(c) / w.scale) : w.e;
-    w.FL.resize(n);
-    if (w.e.isZero(0)) {
-      // (I - diag(rho) F) is invertible for rho < 1 and row sums <= 1: zero emission, zero radiance.
-      w.L.setZero();
-      w.FL.setZero();
-      w.report.stop = "converged";
-      w.report.history.push_back(0);
-    } else {
-      todo.push_back(c);
-    }
-  }
-  // The channels to iterate run side by side, their products with F grouped (ProductGroup: one pass over the
-  // operator's entries for all of them, each channel's product the same bits as alone), unless their Krylov bases
-  // together would pass 2 GiB.
-  const bool together = todo.size() > 1 && (sol.method != Method::GMRES ||
-                                             double(todo.size()) * (options.restart + 1.0) * n * sizeof(double) <=
-                                                 2.0 * (1u << 30));
-  std::mutex progress_mutex;
-  Options run_options = options;
-  if (together && options.progress)
-    run_options.progress = [&](int channel, int iteration, double residual) {
-      std::lock_guard lock(progress_mutex);
-      options.progress(channel, iteration, residual);
-    };
-  auto run = [&](int c, const formfactor::TransportOperator& op) {
-    Channel& w = ch[size_t(c)];
-    detail::ChannelResult res = detail::iterate(sol.method, op, w.r, w.e, w.L, w.FL, run_options, c);
-    if (!res.fl_valid) {
-      op.apply(w.L, w.FL);
-      ++res.report.matvecs;
-    }
-    w.report = std::move(res.report);
-  };
-  if (together) {
-    detail::ProductGroup group(*F_, int(todo.size()));
-    std::vector<std::thread> threads;
-    for (size_t k = 0; k < todo.size(); ++k)
-      threads.emplace_back([&, k] {
-        const int c = todo[k];
-        const detail::GroupedOperator op(group, int(k));
-        try {
-          run(c, op);
-        } catch (...) {
-          ch[size_t(c)].error = std::current_exception();
-        }
-        group.leave();
-      });
-    for (std::thread& t : threads) t.join();
-    for (const int c : todo)
-      if (ch[size_t(c)].error) std::rethrow_exception(ch[size_t(c)].error);
-  } else {
-    for (const int c : todo) run(c, *F_);
-  }
   sol.converged = true;
   long negative = 0;
   double most_negative = 0, largest = 0;
   for (int c = 0; c < channels; ++c) {
-    Channel& w = ch[size_t(c)];
-    if (w.same >= 0) {
-      sol.radiance.col(c) = sol.radiance.col(w.same);
-      sol.irradiance.col(c) = sol.irradiance.col(w.same);
-      sol.channels.push_back(sol.channels[size_t(w.same)]);
+    int same = -1;
+    for (int e = 0; e < c && same < 0; ++e)
+      if (rho.col(e) == rho.col(c) && Le.col(e) == Le.col(c) &&
+          (options.initial_guess.size() == 0 || options.initial_guess.col(e) == options.initial_guess.col(c)))
+        same = e;
+    if (same >= 0) {
+      sol.radiance.col(c) = sol.radiance.col(same);
+      sol.irradiance.col(c) = sol.irradiance.col(same);
+      sol.channels.push_back(sol.channels[same]);
       continue;
     }
-    ChannelReport report = std::move(w.report);
-    VectorXd& L = w.L;
-    VectorXd& FL = w.FL;
-    if (!w.e.isZero(0)) {
-      const VectorXd resid = w.e + w.r.cwiseProduct(FL) - L;
-      report.residual = resid.norm() / detail::residual_scale(L, w.e.norm());
-      report.residual_max =
-          resid.cwiseAbs().maxCoeff() / std::max(L.cwiseAbs().maxCoeff(), w.e.cwiseAbs().maxCoeff());
-      L *= w.scale;
-      FL *= w.scale;
+    // The system is linear: solve for Le / s with s the power of two nearest below max Le (exact scaling,
+    // no rounding), then scale back. Emission of 1e-170 or 1e160 W m^-2 sr^-1 would otherwise underflow or
+    // overflow in the squared norms of the residuals (residual NaN, "divergence").
+    const double emax = Le.col(c).maxCoeff();
+    const double scale = emax > 0 ? std::ldexp(1.0, std::ilogb(emax)) : 1.0;
+    const VectorXd r = rho.col(c), e = Le.col(c) / scale;
+    VectorXd L = options.initial_guess.size() ? VectorXd(options.initial_guess.col(c) / scale) : e;
+    VectorXd FL(n);
+    ChannelReport report;
+    if (e.isZero(0)) {
+      // (I - diag(rho) F) is invertible for rho < 1 and row sums <= 1: zero emission, zero radiance.
+      L.setZero();
+      FL.setZero();
+      report.stop = "converged";
+      report.history.push_back(0);
+    } else {
+      detail::ChannelResult res = detail::iterate(sol.method, *F_, r, e, L, FL, options, c);
+      if (!res.fl_valid) {
+        F_->apply(L, FL);
+        ++res.report.matvecs;
+      }
+      report = std::move(res.report);
+      const VectorXd resid = e + r.cwiseProduct(FL) - L;
+      report.residual = resid.norm() / detail::residual_scale(L, e.norm());
+      report.residual_max = resid.cwiseAbs().maxCoeff() / std::max(L.cwiseAbs().maxCoeff(), e.cwiseAbs().maxCoeff());
+      L *= scale;
+      FL *= scale;
     }
     sol.converged = sol.converged && report.stop == "converged";
     negative += (L.array() < 0).count();

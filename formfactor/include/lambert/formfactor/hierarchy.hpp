@@ -133,8 +133,6 @@ class HierarchicalOperator final : public TransportOperator {
 
   int size() const override;
   void apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const override;
-  // Up to 4 columns per pass over the leaf entries (the same bits per column as apply()).
-  void apply_columns(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Ref<Eigen::MatrixXd> y) const override;
   // Rows are not stored: throws InternalError (callers check has_rows()).
   double row_dot(int i, const Eigen::Ref<const Eigen::VectorXd>& x) const override;
   double diagonal(int) const override { return 0; }   // no self links (planar patches)
@@ -149,7 +147,6 @@ class HierarchicalOperator final : public TransportOperator {
 
  private:
   friend HierarchicalOperator build_hierarchy(const mesh::PatchGeometry&, const HierarchyOptions&, HierarchyStats*);
-  void product(const double* const* x, double* const* y, int k) const;  // k <= 4 columns of size() values
   std::unique_ptr<Impl> d_;
 };
 

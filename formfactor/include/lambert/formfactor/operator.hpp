@@ -13,12 +13,6 @@ class TransportOperator {
   virtual int size() const = 0;
   // y = F x. x and y have size() entries and must not alias.
   virtual void apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const = 0;
-  // y.col(c) = F x.col(c) for every column (size() rows each, as many columns in y as in x, no aliasing), each column
-  // bit for bit what apply() gives it, so a solve does not depend on how its products are grouped. Here apply() per
-  // column; the hierarchical operator reads its stored entries once for all columns (a memory-bound product).
-  virtual void apply_columns(const Eigen::Ref<const Eigen::MatrixXd>& x, Eigen::Ref<Eigen::MatrixXd> y) const {
-    for (Eigen::Index c = 0; c < x.cols(); ++c) apply(x.col(c), y.col(c));
-  }
   // sum_j F(i, j) x_j: one row, for Gauss-Seidel sweeps.
   virtual double row_dot(int i, const Eigen::Ref<const Eigen::VectorXd>& x) const = 0;
   // F(i, i): 0 for planar patches, kept for generality (curved or clustered elements).
