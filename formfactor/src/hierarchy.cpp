@@ -398,6 +398,8 @@ class Refiner {
   // (10k building, user time, minimum of three: 64 / 32 as good as any of 16-256 / 8-32.)
   static constexpr int kFrontierPatches = 64;
   static constexpr int kFrontierItems = 32;
+  static constexpr int kCoarsePatches = 4096;
+  static constexpr int kCoarseItems = 1024;
   static std::span<const int> walk_from(const std::vector<int>* from) {
     return from ? std::span<const int>(*from) : detail::OccluderTree::root();
   }
@@ -461,7 +463,8 @@ class Refiner {
   }
 
   // from: the occluder tree's frontier for an enclosing pair's shaft (see below), or null.
-  void refine(int a, int b, const std::vector<int>* from = nullptr) {
+  // level: what `from` is (0: none, the tree's root; 1: a coarse frontier; 2: a fine one).
+  void refine(int a, int b, const std::vector<int>* from = nullptr, int level = 0) {
     const HNode &A = d_.nodes[a], &B = d_.nodes[b];
     if (a == b) {
       if (A.leaf()) {
@@ -470,11 +473,12 @@ class Refiner {
       }
       const int l = A.left, r = A.right;
       if (A.level < kParallelLevels)
-        tbb::parallel_invoke([&] { refine(l, l, from); }, [&] { refine(r, r, from); }, [&] { refine(l, r, from); });
+        tbb::parallel_invoke([&] { refine(l, l, from, level); }, [&] { refine(r, r, from, level); },
+                             [&] { refine(l, r, from, level); });
       else {
-        refine(l, l, from);
-        refine(r, r, from);
-        refine(l, r, from);
+        refine(l, l, from, level);
+        refine(r, r, from, level);
+        refine(l, r, from, level);
       }
       return;
     }
@@ -507,20 +511,32 @@ class Refiner {
     // Below a small enough pair, the shaft tests of the pairs under it (inside its shaft: their boxes lie in its
     // nodes' boxes) walk the occluder tree from this shaft's frontier instead of its root: the same answers
     // (OccluderTree::frontier) for fewer box tests. Boxes grown by 1e-9 of the scene (grown_box_shaft).
+    // Two levels: pairs of at most kCoarsePatches patches find a coarse frontier from the root (nodes of at most
+    // kCoarseItems occluders), pairs of at most kFrontierPatches the fine one from it (a walk from the root per small
+    // pair cost a third of the million-patch building's build). The coarse shaft is grown by twice the fine one's
+    // margin, so the fine shaft stays inside it after rounding.
     std::vector<int> own;
     const std::vector<int>* pass = from;
-    if (!from && occlusion_ && (A.end - A.begin) + (B.end - B.begin) <= kFrontierPatches) {
-      tree_.frontier(detail::grown_box_shaft(A.box, B.box, 10 * d_.P.scene_eps, d_.P.scene_eps), kFrontierItems, own);
+    int pass_level = level;
+    const int count = (A.end - A.begin) + (B.end - B.begin);
+    if (occlusion_ && level < 2 && count <= kFrontierPatches) {
+      tree_.frontier_from(detail::grown_box_shaft(A.box, B.box, 10 * d_.P.scene_eps, d_.P.scene_eps), kFrontierItems,
+                          walk_from(from), own);
       pass = &own;
+      pass_level = 2;
+    } else if (occlusion_ && level < 1 && count <= kCoarsePatches) {
+      tree_.frontier(detail::grown_box_shaft(A.box, B.box, 20 * d_.P.scene_eps, d_.P.scene_eps), kCoarseItems, own);
+      pass = &own;
+      pass_level = 1;
     }
     const bool split_b = A.leaf() || (!B.leaf() && B.R > A.R);
     const int keep = split_b ? a : b, s = split_b ? b : a;
     const int c0 = d_.nodes[s].left, c1 = d_.nodes[s].right;
     if (std::min(A.level, B.level) < kParallelLevels)
-      tbb::parallel_invoke([&] { refine(keep, c0, pass); }, [&] { refine(keep, c1, pass); });
+      tbb::parallel_invoke([&] { refine(keep, c0, pass, pass_level); }, [&] { refine(keep, c1, pass, pass_level); });
     else {
-      refine(keep, c0, pass);
-      refine(keep, c1, pass);
+      refine(keep, c0, pass, pass_level);
+      refine(keep, c1, pass, pass_level);
     }
   }
 

@@ -297,21 +297,25 @@ void OccluderTree::collect_grouped_from(const Shaft& s, int ia, int ib, std::spa
       });
 }
 
-void OccluderTree::frontier(const Shaft& s, int items, std::vector<int>& out) const {
+void OccluderTree::frontier(const Shaft& s, int items, std::vector<int>& out) const { frontier_from(s, items, root(), out); }
+
+void OccluderTree::frontier_from(const Shaft& s, int items, std::span<const int> roots, std::vector<int>& out) const {
   if (nodes_.empty()) return;
-  int stack[64];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const int id = stack[--top];
-    const Node& nd = nodes_[id];
-    if (box_outside(s, nd.box)) continue;
-    if (nd.left < 0 || nd.end - nd.begin <= items) {
-      out.push_back(id);
-      continue;
+  int stack[72];
+  for (const int r : roots) {
+    int top = 0;
+    stack[top++] = r;
+    while (top > 0) {
+      const int id = stack[--top];
+      const Node& nd = nodes_[id];
+      if (box_outside(s, nd.box)) continue;
+      if (nd.left < 0 || nd.end - nd.begin <= items) {
+        out.push_back(id);
+        continue;
+      }
+      stack[top++] = nd.right;
+      stack[top++] = nd.left;
     }
-    stack[top++] = nd.right;
-    stack[top++] = nd.left;
   }
 }
 

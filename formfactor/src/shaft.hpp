@@ -65,6 +65,9 @@ class OccluderTree {
   // walk order. A walk of a shaft inside it reaches only nodes under those, so the *_from versions, which walk
   // from them, give the same answers as may_block and collect, in the same order, for fewer box tests.
   void frontier(const Shaft& s, int items, std::vector<int>& out) const;
+  // The same from a larger shaft's frontier (roots, in walk order) instead of the root: the same nodes in the same
+  // order, for a shaft inside that larger one (a frontier within a frontier).
+  void frontier_from(const Shaft& s, int items, std::span<const int> roots, std::vector<int>& out) const;
   // (An empty frontier: nothing in the larger shaft. root(): the frontier of any shaft, the tree's root.)
   static std::span<const int> root() {
     static constexpr int kRoot[1] = {0};
