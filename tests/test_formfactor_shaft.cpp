@@ -190,7 +190,8 @@ TEST(OccluderTree, ClearedPairsMeetNoPatch) {
 // (as the hierarchy's small clusters: their joint boxes grown by 1e-9 of the scene) and every pair of patches
 // between two groups, the walk from the frontier must find the same occluders in the same order as the walk from
 // the root, and may_block must agree with and without its hint (yes/no and lists: no tolerance), for frontiers of
-// nodes of up to 1, 4 and 32 occluders.
+// nodes of up to 1, 4 and 32 occluders; and each frontier found from a coarser frontier (OccluderTree::frontier_from)
+// must be the one found from the root.
 TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
   const mesh::PatchGeometry g = scene();
   const int n = g.size();
@@ -212,6 +213,21 @@ TEST(OccluderTree, WalksFromAFrontierFindWhatWalksFromTheRootFind) {
         front.clear();
         tree.frontier(fd::grown_box_shaft(ba, bb, pad, 1e-10 * 4.6), items, front);
         frontier_nodes += static_cast<long long>(front.size());
+        // The same frontier from a coarse one (nodes of up to 64 occluders) of a pair of larger groups holding these,
+        // grown by twice the margin (as the hierarchy's two levels): the same nodes in the same order.
+        {
+          fd::Box ca = ba, cb = bb;
+          for (int k = kGroup; k < 3 * kGroup; ++k) {
+            if (ga + k < n) ca.add(box[size_t(ga + k)]);
+            if (gb + k < n) cb.add(box[size_t(gb + k)]);
+          }
+          std::vector<int> coarse, nested;
+          tree.frontier(fd::grown_box_shaft(ca, cb, 2 * pad, 1e-10 * 4.6), 64, coarse);
+          tree.frontier_from(fd::grown_box_shaft(ba, bb, pad, 1e-10 * 4.6), items, coarse, nested);
+          if (nested != front && ++differ <= 5)
+            ADD_FAILURE() << "groups " << ga << ", " << gb << ": frontier of " << front.size() << " nodes from the root, "
+                          << nested.size() << " from a coarse frontier of " << coarse.size();
+        }
         largest = std::max(largest, front.size());
         for (int i = ga; i < ga + kGroup; ++i)
           for (int j = gb; j < gb + kGroup; ++j) {
