@@ -199,16 +199,12 @@ bool polygon_may_meet(const Shaft& s, const Box& box, std::span<const Vec3> poly
 
 bool OccluderTree::item_may_block(const Shaft& s, int p) const { return polygon_may_meet(s, boxes_[p], g_->polygon(p)); }
 
-// Visits, in tree order (left subtree first), every occluder other than ia and ib that may meet the shaft,
-// until `visit` returns true; returns whether it did. From the root, or from `roots` (a frontier, in order).
-// Subtrees with skip_node(node) and occluders with skip_item(p) are passed over without their tests.
-template <class SkipNode, class SkipItem, class Visit>
-bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, SkipNode&& skip_node,
-                            SkipItem&& skip_item, Visit&& visit) const {
-  if (nodes_.empty()) return false;
-  // The roots in turn, each depth first (left child first): the order of a walk from the tree's root, for a frontier
-  // of any size (one of more than 64 nodes used to be walked from the root instead). The stack holds one pending
-  // right child per level below a root (depth <= 64: build).
+// The roots in turn, each depth first (left child first), over the nodes whose box meets the shaft: the order of a
+// walk from the tree's root, for a frontier of any size (one of more than 64 nodes used to be walked from the root
+// instead). at(id, node) says whether to go on to the node's children, not to, or to end the walk (which then
+// returns true). The stack holds one pending right child per level below a root (depth <= 64: build).
+template <class At>
+bool OccluderTree::walk(const Shaft& s, std::span<const int> roots, At&& at) const {
   int stack[72];
   for (const int r : roots) {
     int top = 0;
@@ -216,19 +212,34 @@ bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int>
     while (top > 0) {
       const int id = stack[--top];
       const Node& nd = nodes_[id];
-      if (skip_node(id) || box_outside(s, nd.box)) continue;
-      if (nd.left >= 0) {
+      if (box_outside(s, nd.box)) continue;
+      const Step step = at(id, nd);
+      if (step == Step::Stop) return true;
+      if (step == Step::Descend) {
         stack[top++] = nd.right;
         stack[top++] = nd.left;
-        continue;
-      }
-      for (int k = nd.begin; k < nd.end; ++k) {
-        const int p = items_[k];
-        if (p != ia && p != ib && !skip_item(p) && item_may_block(s, p) && visit(p)) return true;
       }
     }
   }
   return false;
+}
+
+// Visits, in tree order (left subtree first), every occluder other than ia and ib that may meet the shaft,
+// until `visit` returns true; returns whether it did. From the root, or from `roots` (a frontier, in order).
+// Subtrees with skip_node(node) and occluders with skip_item(p) are passed over without their tests.
+template <class SkipNode, class SkipItem, class Visit>
+bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, SkipNode&& skip_node,
+                            SkipItem&& skip_item, Visit&& visit) const {
+  if (nodes_.empty()) return false;
+  return walk(s, roots, [&](int id, const Node& nd) {
+    if (skip_node(id)) return Step::Skip;
+    if (nd.left >= 0) return Step::Descend;
+    for (int k = nd.begin; k < nd.end; ++k) {
+      const int p = items_[k];
+      if (p != ia && p != ib && !skip_item(p) && item_may_block(s, p) && visit(p)) return Step::Stop;
+    }
+    return Step::Skip;
+  });
 }
 
 template <class Visit>
@@ -301,22 +312,11 @@ void OccluderTree::frontier(const Shaft& s, int items, std::vector<int>& out) co
 
 void OccluderTree::frontier_from(const Shaft& s, int items, std::span<const int> roots, std::vector<int>& out) const {
   if (nodes_.empty()) return;
-  int stack[72];
-  for (const int r : roots) {
-    int top = 0;
-    stack[top++] = r;
-    while (top > 0) {
-      const int id = stack[--top];
-      const Node& nd = nodes_[id];
-      if (box_outside(s, nd.box)) continue;
-      if (nd.left < 0 || nd.end - nd.begin <= items) {
-        out.push_back(id);
-        continue;
-      }
-      stack[top++] = nd.right;
-      stack[top++] = nd.left;
-    }
-  }
+  walk(s, roots, [&](int id, const Node& nd) {
+    if (nd.left >= 0 && nd.end - nd.begin > items) return Step::Descend;
+    out.push_back(id);
+    return Step::Skip;
+  });
 }
 
 }  // namespace lambert::formfactor::detail

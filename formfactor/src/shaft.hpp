@@ -91,6 +91,9 @@ class OccluderTree {
     int left = -1, right = -1, begin = 0, end = 0;  // leaf if left < 0; items [begin, end) of the subtree
   };
   int build(int begin, int end, int depth);
+  enum class Step { Skip, Descend, Stop };
+  template <class At>
+  bool walk(const Shaft& s, std::span<const int> roots, At&& at) const;
   template <class Visit>
   bool traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const;
   template <class SkipNode, class SkipItem, class Visit>
