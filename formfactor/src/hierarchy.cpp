@@ -513,7 +513,7 @@ class Refiner {
     // (OccluderTree::frontier) for fewer box tests. Boxes grown by 1e-9 of the scene (grown_box_shaft).
     // Two levels: pairs of at most kCoarsePatches patches find a coarse frontier from the root (nodes of at most
     // kCoarseItems occluders), pairs of at most kFrontierPatches the fine one from it (a walk from the root per small
-    // pair cost a third of the million-patch building's build). The coarse shaft is grown by twice the fine one's
+    // pair took about 30 % of the million-patch building's build). The coarse shaft is grown by twice the fine one's
     // margin, so the fine shaft stays inside it after rounding.
     std::vector<int> own;
     const std::vector<int>* pass = from;
