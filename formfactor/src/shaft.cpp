@@ -201,10 +201,11 @@ bool OccluderTree::item_may_block(const Shaft& s, int p) const { return polygon_
 
 // The roots in turn, each depth first (left child first), over the nodes whose box meets the shaft: the order of a
 // walk from the tree's root, for a frontier of any size (one of more than 64 nodes used to be walked from the root
-// instead). at(id, node) says whether to go on to the node's children, not to, or to end the walk (which then
-// returns true). The stack holds one pending right child per level below a root (depth <= 64: build).
-template <class At>
-bool OccluderTree::walk(const Shaft& s, std::span<const int> roots, At&& at) const {
+// instead). Nodes with skip(id) are passed over before their box test; at(id, node) says whether to go on to the
+// node's children, not to, or to end the walk (which then returns true). The stack holds one pending right child per
+// level below a root (depth <= 64: build).
+template <class Skip, class At>
+bool OccluderTree::walk(const Shaft& s, std::span<const int> roots, Skip&& skip, At&& at) const {
   int stack[72];
   for (const int r : roots) {
     int top = 0;
@@ -212,7 +213,7 @@ bool OccluderTree::walk(const Shaft& s, std::span<const int> roots, At&& at) con
     while (top > 0) {
       const int id = stack[--top];
       const Node& nd = nodes_[id];
-      if (box_outside(s, nd.box)) continue;
+      if (skip(id) || box_outside(s, nd.box)) continue;
       const Step step = at(id, nd);
       if (step == Step::Stop) return true;
       if (step == Step::Descend) {
@@ -231,8 +232,7 @@ template <class SkipNode, class SkipItem, class Visit>
 bool OccluderTree::traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, SkipNode&& skip_node,
                             SkipItem&& skip_item, Visit&& visit) const {
   if (nodes_.empty()) return false;
-  return walk(s, roots, [&](int id, const Node& nd) {
-    if (skip_node(id)) return Step::Skip;
+  return walk(s, roots, skip_node, [&](int, const Node& nd) {
     if (nd.left >= 0) return Step::Descend;
     for (int k = nd.begin; k < nd.end; ++k) {
       const int p = items_[k];
@@ -312,7 +312,7 @@ void OccluderTree::frontier(const Shaft& s, int items, std::vector<int>& out) co
 
 void OccluderTree::frontier_from(const Shaft& s, int items, std::span<const int> roots, std::vector<int>& out) const {
   if (nodes_.empty()) return;
-  walk(s, roots, [&](int id, const Node& nd) {
+  walk(s, roots, [](int) { return false; }, [&](int id, const Node& nd) {
     if (nd.left >= 0 && nd.end - nd.begin > items) return Step::Descend;
     out.push_back(id);
     return Step::Skip;

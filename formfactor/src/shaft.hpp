@@ -92,8 +92,8 @@ class OccluderTree {
   };
   int build(int begin, int end, int depth);
   enum class Step { Skip, Descend, Stop };
-  template <class At>
-  bool walk(const Shaft& s, std::span<const int> roots, At&& at) const;
+  template <class Skip, class At>
+  bool walk(const Shaft& s, std::span<const int> roots, Skip&& skip, At&& at) const;
   template <class Visit>
   bool traverse(const Shaft& s, int ia, int ib, std::span<const int> roots, Visit&& visit) const;
   template <class SkipNode, class SkipItem, class Visit>
