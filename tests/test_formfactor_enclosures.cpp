@@ -416,6 +416,49 @@ TEST(Enclosures, HierarchyWithCellsMatchesWithout) {
     });
 }
 
+// 9b. A row of 32 empty closed rooms (inward unit boxes 0.1 m apart, 3 x 3 patches per wall), each its own cell.
+// The tree splits between cells first, so every node above the rooms holds whole cells and meets no cell of a node
+// outside it: each of the 31 node pairs that a split between rooms creates is refused at once, and no pair below it
+// is visited (before, the refinement went on until both nodes held one room each: all 496 pairs of rooms, and in
+// the million-polygon building 70 M node pairs). Expected: exactly 31 refusals; every row of a closed room summing
+// to 1 within its admitted error (no same-room pair was refused); the other rooms receiving exactly nothing from
+// the first; no ray (nothing hides anything inside a room).
+TEST(Enclosures, CellsAreRefusedOnceWhereTheTreeSplitsThem) {
+  constexpr int kRooms = 32;
+  SceneBuilder s;
+  std::vector<Range> rooms;
+  for (int k = 0; k < kRooms; ++k)
+    rooms.push_back(s.add(mesh::shapes::box(Vec3(1.1 * k, 0, 0), Vec3(1.1 * k + 1, 1, 1), 3, true)));
+  const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(s.polys);
+  const int n = g.size();
+  formfactor::HierarchyOptions ho;
+  ho.tolerance = 5e-2;
+  ho.visibility = true;
+  ho.visibility_method = formfactor::VisibilityMethod::Rays;
+  ho.portals = false;
+  formfactor::HierarchyStats st;
+  const formfactor::HierarchicalOperator H = formfactor::build_hierarchy(g, ho, &st);
+  std::printf("%d patches, %d cells, %lld pairs cell-culled, %lld far + %lld leaf links, %lld blocked, %lld rays, "
+              "admitted row error max %.2e\n",
+              n, st.cells, st.pairs_cell_culled, st.far_links, st.leaf_links, st.links_blocked, st.rays_cast,
+              st.row_error_max);
+  ASSERT_EQ(st.cells, kRooms) << "one cell per room: the test must mean something";
+  EXPECT_EQ(st.pairs_cell_culled, kRooms - 1) << "node pairs refused across cells: one per split between rooms";
+  EXPECT_EQ(st.rays_cast, 0) << "rays cast, with nothing to hide anything in a room and no light between rooms";
+  EXPECT_EQ(st.links_blocked, 0) << "blocked links between rooms that share no cell";
+  Eigen::VectorXd ones = Eigen::VectorXd::Ones(n), y(n);
+  H.apply(ones, y);
+  ASSERT_EQ(int(st.row_error.size()), n);
+  for (int i = 0; i < n; ++i)  // closed room: F 1 = 1, up to the admitted error (plus 1e-12 for round-off)
+    EXPECT_LE(std::abs(y[i] - 1), st.row_error[i] + 1e-12)
+        << "row " << i << " (room " << i / (n / kRooms) << ") sums to " << y[i] << ", admitted error " << st.row_error[i];
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+  x.segment(rooms[0].begin, rooms[0].end - rooms[0].begin).setOnes();
+  H.apply(x, y);
+  for (int i = rooms[1].begin; i < n; ++i)
+    EXPECT_EQ(y[i], 0.0) << "row " << i << " of a dark room receives " << y[i] << " from the first room";
+}
+
 // 10. Open scenes: a ground quad [-1,1]^2 with an outward box [-0.5,0.5]^2 x [0,1] standing on it, no bottom (its
 // bottom edges lie inside the ground quad: not a closed surface). Mutually visible patches (box sides and top vs
 // ground) are never refused. The ground's sample point (the centroid of its largest triangle, (1/3, -1/3)) lies

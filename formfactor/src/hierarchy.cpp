@@ -47,11 +47,13 @@ struct TreeBuilder {
   std::vector<HNode>& nodes;
   std::vector<int>& perm;
   std::vector<Box> pbox;
-  std::span<const int> cell;  // per patch (enclosures.hpp), or empty
+  std::span<const int> cell;   // per patch: its room (portals.hpp) or cell (enclosures.hpp), or empty
+  std::span<const int> outer;  // per patch: its cell (enclosures.hpp), which holds whole rooms, or empty
 
-  bool mixed(int begin, int end) const {
+  bool mixed(std::span<const int> c, int begin, int end) const {
+    if (c.empty()) return false;
     for (int k = begin + 1; k < end; ++k)
-      if (cell[perm[k]] != cell[perm[begin]]) return true;
+      if (c[perm[k]] != c[perm[begin]]) return true;
     return false;
   }
 
@@ -81,13 +83,15 @@ struct TreeBuilder {
     }
     int mid = (begin + end) / 2;
     auto value = [&](int p) { return key < 3 ? g.centroid[p][key] : g.normal[p][key - 3]; };
-    if (!cell.empty() && mixed(begin, end)) {
-      // Patches of several cells (enclosures.hpp): whole cells go to one side, ordered by their mean key, and the
-      // split falls between cells nearest the median, so that the nodes below hold one cell each and the
-      // refinement can refuse pairs across cells at once.
+    // Patches of several cells (enclosures.hpp), else of several rooms: whole cells (rooms) go to one side, ordered
+    // by their mean key, and the split falls between them nearest the median, so that the nodes below hold one cell
+    // (room) each and the refinement can refuse pairs across cells at once. Cells first: a node above them holds
+    // whole cells, and meets any node outside it in none of them (Refiner::setup).
+    const std::span<const int> group = mixed(outer, begin, end) ? outer : mixed(cell, begin, end) ? cell : std::span<const int>();
+    if (!group.empty()) {
       std::map<int, std::pair<double, int>> mean;
       for (int k = begin; k < end; ++k) {
-        auto& m = mean[cell[perm[k]]];
+        auto& m = mean[group[perm[k]]];
         m.first += value(perm[k]);
         ++m.second;
       }
@@ -101,8 +105,8 @@ struct TreeBuilder {
       keys.reserve(size_t(end - begin));
       for (int k = begin; k < end; ++k) {
         const int p = perm[k];
-        const auto& m = mean[cell[p]];
-        keys.push_back({m.first / m.second, cell[p], value(p), p});
+        const auto& m = mean[group[p]];
+        keys.push_back({m.first / m.second, group[p], value(p), p});
       }
       std::sort(keys.begin(), keys.end(), [](const Key& x, const Key& y) {
         if (x.cell != y.cell) return x.cell_mean < y.cell_mean || (x.cell_mean == y.cell_mean && x.cell < y.cell);
@@ -111,7 +115,7 @@ struct TreeBuilder {
       for (int k = begin; k < end; ++k) perm[k] = keys[size_t(k - begin)].p;
       int best_mid = -1;
       for (int k = begin + 1; k < end; ++k)
-        if (cell[perm[k]] != cell[perm[k - 1]] && (best_mid < 0 || std::abs(k - mid) < std::abs(best_mid - mid)))
+        if (group[perm[k]] != group[perm[k - 1]] && (best_mid < 0 || std::abs(k - mid) < std::abs(best_mid - mid)))
           best_mid = k;
       mid = best_mid;
     } else {
@@ -355,6 +359,31 @@ class Refiner {
         node_cell_[k] = nd.leaf() ? cell[d_.perm[nd.begin]]
                                   : (node_cell_[nd.left] == node_cell_[nd.right] ? node_cell_[nd.left] : -1);
       }
+    // Nodes that hold every patch of each cell they touch, and no patch of unknown cell (bit 0), and nodes that hold
+    // a patch of unknown cell (bit 1): no patch outside a node of the first kind shares a cell with one inside it.
+    node_cells_.assign(d_.nodes.size(), 0);
+    if (occlusion_ && !cell.empty()) {
+      const int cells = cell.empty() ? 0 : *std::max_element(cell.begin(), cell.end()) + 1;
+      std::vector<int> first(size_t(std::max(cells, 0)), n), last(size_t(std::max(cells, 0)), -1);
+      for (int k = 0; k < n; ++k)
+        if (const int c = cell[d_.perm[k]]; c >= 0) first[size_t(c)] = std::min(first[size_t(c)], k), last[size_t(c)] = k;
+      std::vector<int> lo(d_.nodes.size()), hi(d_.nodes.size());
+      for (int k = int(d_.nodes.size()) - 1; k >= 0; --k) {
+        const HNode& nd = d_.nodes[k];
+        std::uint8_t unknown = 0;
+        if (nd.leaf()) {
+          const int c = cell[d_.perm[nd.begin]];
+          unknown = c < 0;
+          lo[k] = c < 0 ? -1 : first[size_t(c)];
+          hi[k] = c < 0 ? n : last[size_t(c)];
+        } else {
+          unknown = (node_cells_[nd.left] | node_cells_[nd.right]) & 2;
+          lo[k] = std::min(lo[nd.left], lo[nd.right]);
+          hi[k] = std::max(hi[nd.left], hi[nd.right]);
+        }
+        node_cells_[k] = unknown ? 2 : (lo[k] >= nd.begin && hi[k] < nd.end ? 1 : 0);
+      }
+    }
     // Rooms (cells with the openings closed) per node.
     node_room_.assign(d_.nodes.size(), -1);
     if (occlusion_ && rooms && !rooms->empty()) {
@@ -488,7 +517,8 @@ class Refiner {
       progress(A.area * B.area, loc);
       return;
     }
-    if (node_cell_[a] >= 0 && node_cell_[b] >= 0 && node_cell_[a] != node_cell_[b]) {
+    if ((node_cell_[a] >= 0 && node_cell_[b] >= 0 && node_cell_[a] != node_cell_[b]) ||
+        ((node_cells_[a] & 1) && !(node_cells_[b] & 2)) || ((node_cells_[b] & 1) && !(node_cells_[a] & 2))) {
       ++loc.cell_culled;
       progress(A.area * B.area, loc);
       return;
@@ -831,6 +861,7 @@ class Refiner {
  private:
   std::vector<double> lmax_, cum_;
   std::vector<int> node_cell_, node_room_;
+  std::vector<std::uint8_t> node_cells_;  // setup: bit 0 holds whole cells, bit 1 holds a patch of unknown cell
   const detail::Rooms* rooms_ = nullptr;
   std::vector<Box> pbox_;
   double lref_ = 1;
@@ -1039,7 +1070,8 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     d.perm.resize(n);
     std::iota(d.perm.begin(), d.perm.end(), 0);
     d.nodes.reserve(size_t(2 * n));
-    TreeBuilder tb{g, d.nodes, d.perm, {}, cells};
+    TreeBuilder tb{g, d.nodes, d.perm, {}, cells,
+                   !rooms.empty() && enc.surfaces > 0 ? std::span<const int>(enc.cell) : std::span<const int>()};
     tb.pbox.resize(n);
     for (int p = 0; p < n; ++p)
       for (const Vec3& v : g.polygon(p)) tb.pbox[p].add(v);
