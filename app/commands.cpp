@@ -217,6 +217,11 @@ formfactor::HierarchyOptions hierarchy_options(const CommonOptions& o, const mes
   h.brightness.resize(size_t(scene.patches()));
   for (int p = 0; p < scene.patches(); ++p)
     h.brightness[size_t(p)] = Le.row(p).maxCoeff() + rho.row(p).maxCoeff() * le_max / (1 - std::min(rho_max, 0.999999));
+  if (emission) {  // a solve: closed cells without an emitter are dark, and pairs of dark patches carry nothing
+    h.emission.resize(size_t(scene.patches()));
+    for (int p = 0; p < scene.patches(); ++p) h.emission[size_t(p)] = Le.row(p).maxCoeff();
+    h.radiance_only = true;
+  }
   return h;
 }
 
@@ -244,6 +249,7 @@ formfactor::Stats stats_of(const formfactor::HierarchyStats& h, const formfactor
   st.row_sum_max = h.row_sum_max;
   st.row_sum_mean = h.row_sum_mean;
   st.row_error_bound = h.row_error;         // far links' admitted error plus the leaf entries' bounds
+  st.row_unresolved = h.row_dark;
   st.row_error_bound_max = h.row_error_max;
   st.row_visibility_sigma = h.row_visibility_sigma;
   st.row_visibility_sigma_max = h.row_visibility_sigma_max;
@@ -426,7 +432,8 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                       {"enclosures", {{"surfaces", h.enclosures}, {"patches_crossing", h.cell_crossed},
                                       {"surface_patches", h.enclosure_patches}, {"cells", h.cells},
                                       {"patches_of_unknown_cell", h.cell_unknown}, {"pairs_refused", h.pairs_cell_culled},
-                                      {"seconds", h.seconds_enclosures}}},
+                                      {"dark_cells", h.dark_cells}, {"seconds", h.seconds_enclosures}}},
+                      {"dark_patches", h.dark_patches}, {"pairs_dark_refused", h.pairs_dark_culled},
                       {"portals", {{"openings", h.portals}, {"room_cells", h.room_cells},
                                    {"pairs_refused", h.pairs_portal_culled}, {"seconds", h.seconds_portals}}},
                       {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
@@ -437,7 +444,7 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
   }
   if (r.row_check) {
     const formfactor::RowSumCheck& c = *r.row_check;
-    j["row_sum_check"] = {{"patches_checked", c.patches_checked}, {"rays", c.rays},
+    j["row_sum_check"] = {{"patches_checked", c.patches_checked}, {"rows_skipped", c.rows_skipped}, {"rays", c.rays},
                           {"max_difference", c.max_difference}, {"max_ratio", c.max_ratio},
                           {"worst_patch", c.worst_patch}, {"worst_row_sum", c.worst_row_sum},
                           {"worst_estimate", c.worst_estimate}, {"worst_allowed", c.worst_allowed},
@@ -523,6 +530,11 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                                                     h.cell_unknown, h.cell_crossed)
                                       : "",
                        h.pairs_cell_culled, h.seconds_enclosures);
+    if (h.dark_patches > 0)
+      s += fmt::format("  dark         {} patches that send nothing (black and not emitting, or in one of {} closed cells "
+                       "without an emitter); {} node pairs between them refused without a link or a ray (their rows "
+                       "are not resolved: radiance 0 in any solution)\n",
+                       h.dark_patches, h.dark_cells, h.pairs_dark_culled);
     if (h.portals > 0)
       s += fmt::format("  portals      {} openings closed by portals: {} rooms; {} node pairs in different rooms whose "
                        "shaft meets no portal between them refused without rays ({:.2f} s)\n",
@@ -536,9 +548,10 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                        h.pairs_exact_over_tolerance ? fmt::format(", {} above tolerance", h.pairs_exact_over_tolerance) : "");
     if (r.row_check && r.row_check->patches_checked > 0)
       s += fmt::format("  row sums     {} patches against {} rays cast from them: largest difference {:.2e}, {:.2g}x "
-                       "the allowed (patch {})\n",
+                       "the allowed (patch {}){}\n",
                        r.row_check->patches_checked, r.row_check->rays, r.row_check->max_difference,
-                       r.row_check->max_ratio, r.row_check->worst_patch);
+                       r.row_check->max_ratio, r.row_check->worst_patch,
+                       r.row_check->rows_skipped ? fmt::format("; the {} dark rows not sampled", r.row_check->rows_skipped) : "");
   } else if (r.ff) {
     s += ff_lines(*r.ff, r.row_check);
   }

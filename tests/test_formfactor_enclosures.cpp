@@ -459,6 +459,77 @@ TEST(Enclosures, CellsAreRefusedOnceWhereTheTreeSplitsThem) {
     EXPECT_EQ(y[i], 0.0) << "row " << i << " of a dark room receives " << y[i] << " from the first room";
 }
 
+// 9c. Dark cells (a solve's operator, HierarchyOptions::radiance_only with the patches' emission): two closed rooms
+// 2 x 2 x 1 m side by side, each with a furniture box (so that pairs inside each room need rays), an emitting
+// ceiling patch in the first only. The second room is a closed cell without an emitter: its radiance is 0 in any
+// solution, so its pairs are refused without a link or a ray. Expected, against the same operator built without
+// the emission (every pair linked): for any x, the product's rows of the lit room are identical (the same links:
+// pairs across the cells are refused either way) and the dark room's rows are exactly 0; fewer rays; the dark rows
+// flagged (HierarchyStats::row_dark) with an admitted error of at most 1; the radiance-relative error no larger.
+TEST(Enclosures, DarkCellIsRefusedAndTheLitRowsAreUnchanged) {
+  SceneBuilder s;
+  const Range lit = s.add(mesh::shapes::box(Vec3(0, 0, 0), Vec3(2, 2, 1), 4, true));
+  const Range lit_box = s.add(mesh::shapes::box(Vec3(0.4, 0.6, 0.0001), Vec3(1.0, 1.4, 0.4), 1, false));
+  const Range dark = s.add(mesh::shapes::box(Vec3(2.1, 0, 0), Vec3(4.1, 2, 1), 4, true));
+  const Range dark_box = s.add(mesh::shapes::box(Vec3(2.6, 0.6, 0.0001), Vec3(3.2, 1.4, 0.4), 1, false));
+  const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(s.polys);
+  const int n = g.size();
+  const int emitter = patch_at(g, Vec3(1.25, 0.75, 1));
+  auto in_lit = [&](int p) { return lit.has(p) || lit_box.has(p); };
+  auto in_dark = [&](int p) { return dark.has(p) || dark_box.has(p); };
+  formfactor::HierarchyStats st[2];
+  std::vector<formfactor::HierarchicalOperator> H;
+  for (int on = 0; on < 2; ++on) {
+    formfactor::HierarchyOptions ho;
+    ho.tolerance = 5e-2;
+    ho.visibility = true;
+    ho.visibility_method = formfactor::VisibilityMethod::Rays;
+    ho.brightness.assign(size_t(n), 1.0);  // the a-priori bound of a grey scene: every patch may be lit
+    if (on) {
+      ho.emission.assign(size_t(n), 0.0);
+      ho.emission[size_t(emitter)] = 1.0;
+      ho.radiance_only = true;
+    }
+    H.push_back(formfactor::build_hierarchy(g, ho, &st[on]));
+    std::printf("emission %s: %lld dark cells, %lld dark patches, %lld dark pairs refused, %lld far + %lld leaf links, "
+                "%lld rays, admitted row error max %.2e, radiance %.2e\n",
+                on ? "given" : "not given", st[on].dark_cells, st[on].dark_patches, st[on].pairs_dark_culled,
+                st[on].far_links, st[on].leaf_links, st[on].rays_cast, st[on].row_error_max, st[on].radiance_error_max);
+  }
+  ASSERT_EQ(st[1].cells, 2) << "lit room and dark room: the test must mean something";
+  EXPECT_EQ(st[1].dark_cells, 1);
+  EXPECT_EQ(st[1].dark_patches, dark_box.end - dark.begin) << "the dark room and its box, nothing else";
+  EXPECT_GT(st[1].pairs_dark_culled, 0);
+  EXPECT_EQ(st[0].pairs_dark_culled, 0);
+  EXPECT_LT(st[1].rays_cast, st[0].rays_cast) << "the dark room's rays were not saved";
+  EXPECT_GT(st[1].rays_cast, 0) << "the lit room's pairs need rays (its box)";
+  EXPECT_LE(st[1].radiance_error_max, st[0].radiance_error_max) << "the dark rows' error, weighed by 0, counted";
+  ASSERT_EQ(int(st[1].row_dark.size()), n);
+  for (int p = 0; p < n; ++p) {
+    EXPECT_EQ(int(st[1].row_dark[size_t(p)]), in_dark(p) ? 1 : 0) << "patch " << p;
+    if (in_dark(p)) {
+      EXPECT_LE(st[1].row_error[size_t(p)], 1.0) << "dark row " << p;
+    }
+  }
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(0.1, 1);
+  for (int trial = 0; trial < 3; ++trial) {
+    Eigen::VectorXd x(n), y[2];
+    for (int i = 0; i < n; ++i) x[i] = trial == 0 ? 1.0 : U(rng);
+    for (int on = 0; on < 2; ++on) {
+      y[on].resize(n);
+      H[size_t(on)].apply(x, y[on]);
+    }
+    for (int i = 0; i < n; ++i) {
+      if (in_lit(i)) {
+        EXPECT_EQ(y[1][i], y[0][i]) << "lit row " << i << ", trial " << trial;
+      } else if (in_dark(i)) {
+        EXPECT_EQ(y[1][i], 0.0) << "dark row " << i << " receives " << y[1][i] << ", trial " << trial;
+      }
+    }
+  }
+}
+
 // 10. Open scenes: a ground quad [-1,1]^2 with an outward box [-0.5,0.5]^2 x [0,1] standing on it, no bottom (its
 // bottom edges lie inside the ground quad: not a closed surface). Mutually visible patches (box sides and top vs
 // ground) are never refused. The ground's sample point (the centroid of its largest triangle, (1/3, -1/3)) lies

@@ -122,9 +122,17 @@ RowSumCheck check_row_sums(const mesh::PatchGeometry& g, const TransportOperator
     throw InputError("row-sum check: patches and rays_per_patch must be >= 1 and k_sigma > 0");
   RowSumCheck out;
   if (n == 0) return out;
-  const int m = std::min(o.patches, n);
+  // Evenly spaced over the rows the assembly resolved (Stats::row_unresolved: dark rows are skipped).
+  std::vector<int> rows;
+  const bool some_unresolved = stats && stats->row_unresolved.size() == size_t(n);
+  for (int p = 0; p < n; ++p)
+    if (!some_unresolved || !stats->row_unresolved[size_t(p)]) rows.push_back(p);
+  out.rows_skipped = n - int(rows.size());
+  const int nr_rows = int(rows.size());
+  if (nr_rows == 0) return out;
+  const int m = std::min(o.patches, nr_rows);
   std::vector<int> sample(static_cast<size_t>(m));
-  for (int k = 0; k < m; ++k) sample[size_t(k)] = int((k + 0.5) * n / m);
+  for (int k = 0; k < m; ++k) sample[size_t(k)] = rows[size_t((k + 0.5) * nr_rows / m)];
   const detail::PatchData P = detail::prepare(g, 1);
   const FirstHit caster(g);
   const int R = o.rays_per_patch;

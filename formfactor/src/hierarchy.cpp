@@ -258,7 +258,7 @@ struct Local {
   std::vector<Chunked<LeafRecord, 12>> leaf;  // per bucket of sources (kBucketRows; blocks of 2^12 records, 64 kB)
   std::vector<double> leaf_err, leaf_sig2;    // per patch: admitted error and visibility variance of its leaf links
   std::vector<double> blocked_err, blocked_lerr;  // per node: admitted error of its blocked links (or empty)
-  long long culled = 0, cell_culled = 0, portal_culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
+  long long culled = 0, cell_culled = 0, portal_culled = 0, dark_culled = 0, shaft_clear = 0, ray_tested = 0, rays = 0, blocked = 0, pair_ray_tested = 0, pair_shaft_clear = 0;
   long long exact_clear = 0, exact_hidden = 0, exact_integrated = 0, exact_points = 0, exact_over = 0;
   detail::SampleBuffers sb;
   std::vector<Vec3> pa, pb;
@@ -324,9 +324,24 @@ class Refiner {
       lref_ = 0;
       for (double b : o_.brightness) lref_ = std::max(lref_, b);
       if (!(lref_ > 0)) lref_ = 1;
+      // A closed cell without an emitter is dark: no light enters it from another cell (the refinement refuses
+      // pairs across cells on the same grounds), so its radiance is 0 in any solution.
+      std::vector<std::uint8_t> dark;
+      if (!o_.emission.empty() && !cell.empty()) {
+        const int cells = *std::max_element(cell.begin(), cell.end()) + 1;
+        std::vector<std::uint8_t> emits(size_t(std::max(cells, 0)), 0);
+        for (int p = 0; p < n; ++p)
+          if (cell[p] >= 0 && o_.emission[size_t(p)] > 0) emits[size_t(cell[p])] = 1;
+        dark.assign(size_t(n), 0);
+        for (int p = 0; p < n; ++p) dark[size_t(p)] = cell[p] >= 0 && !emits[size_t(cell[p])];
+        for (int c = 0; c < cells; ++c) dark_cells += !emits[size_t(c)];
+      }
       for (int k = int(d_.nodes.size()) - 1; k >= 0; --k) {
         const HNode& nd = d_.nodes[k];
-        lmax_[k] = nd.leaf() ? o_.brightness[d_.perm[nd.begin]] : std::max(lmax_[nd.left], lmax_[nd.right]);
+        const int p = d_.perm[nd.begin];
+        lmax_[k] = nd.leaf() ? (!dark.empty() && dark[size_t(p)] ? 0.0 : o_.brightness[size_t(p)])
+                             : std::max(lmax_[nd.left], lmax_[nd.right]);
+        if (nd.leaf() && lmax_[k] == 0) ++dark_patches;
       }
     }
     cum_.assign(size_t(n) + 1, 0.0);
@@ -418,6 +433,7 @@ class Refiner {
 
   tbb::enumerable_thread_specific<Local> locals;
   double lref() const { return lref_; }
+  long long dark_cells = 0, dark_patches = 0;  // setup
   const std::vector<double>& lmax() const { return lmax_; }
 
  private:
@@ -526,6 +542,22 @@ class Refiner {
     if (node_room_[a] >= 0 && node_room_[b] >= 0 && node_room_[a] != node_room_[b] &&
         !portal_path(A, B, node_room_[a], node_room_[b])) {
       ++loc.portal_culled;
+      progress(A.area * B.area, loc);
+      return;
+    }
+    if (o_.radiance_only && lmax_[a] == 0 && lmax_[b] == 0) {
+      // Nothing either side can send (brightness 0: black non-emitters, dark cells): no link, no ray. Each side's
+      // rows admit the largest form factor the other could give them: A_other cos cos / (pi d_min^2) <= that
+      // without the cosines, or 1 where the nodes' spheres meet.
+      const double dmin = (B.c - A.c).norm() - A.R - B.R;
+      const double k = dmin > 0 ? 1 / (kPi * dmin * dmin) : INFINITY;
+      ++loc.dark_culled;
+      if (loc.blocked_err.empty()) {
+        loc.blocked_err.assign(d_.nodes.size(), 0.0);
+        loc.blocked_lerr.assign(d_.nodes.size(), 0.0);
+      }
+      loc.blocked_err[size_t(a)] += float(std::min(1.0, k * B.area));
+      loc.blocked_err[size_t(b)] += float(std::min(1.0, k * A.area));
       progress(A.area * B.area, loc);
       return;
     }
@@ -1010,6 +1042,13 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
         throw InputError("hierarchical operator: brightness of patch " + std::to_string(p) + " is " +
                          std::to_string(o.brightness[p]) + " (must be finite and >= 0)");
   }
+  if (!o.emission.empty()) {
+    LAMBERT_CHECK(o.emission.size() == size_t(n), "hierarchical operator: emission needs one value per patch");
+    for (int p = 0; p < n; ++p)
+      if (!(o.emission[p] >= 0) || !std::isfinite(o.emission[p]))
+        throw InputError("hierarchical operator: emission of patch " + std::to_string(p) + " is " +
+                         std::to_string(o.emission[p]) + " (must be finite and >= 0)");
+  }
   const MemoryLimit sys = o.max_bytes ? MemoryLimit{o.max_bytes, "max_bytes"} : system_memory_limit();
   st.bytes_estimate = estimate_hierarchy_bytes(std::size_t(n), o.tolerance);
   if (st.bytes_estimate > sys.bytes)
@@ -1088,6 +1127,8 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     Refiner rf(g, o, d, etol, sys.bytes);
     rf.link_tol_ = st.link_tolerance;
     rf.setup(occ, enc.surfaces > 0 ? std::span<const int>(enc.cell) : std::span<const int>(), &rooms);
+    st.dark_cells = rf.dark_cells;
+    st.dark_patches = rf.dark_patches;
     rf.run();
     // The records into the stored rows, thread by thread (each thread's records freed as soon as they are
     // placed: no merged copy), then each row sorted by source: the stored operator does not depend on the thread
@@ -1098,6 +1139,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       st.pairs_culled += l.culled;
       st.pairs_cell_culled += l.cell_culled;
       st.pairs_portal_culled += l.portal_culled;
+      st.pairs_dark_culled += l.dark_culled;
       st.links_shaft_clear += l.shaft_clear;
       st.links_ray_tested += l.ray_tested;
       st.rays_cast += l.rays;
@@ -1159,9 +1201,18 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
       st.row_visibility_sigma_max = std::max(st.row_visibility_sigma_max, v);
     }
     st.row_error.resize(n);
+    const std::vector<double>& lmax = rf.lmax();
     for (int p = 0; p < n; ++p) {
-      st.row_error[p] = err[d.leaf_of[p]];
-      st.row_error_max = std::max(st.row_error_max, err[d.leaf_of[p]]);
+      const int leaf = d.leaf_of[p];
+      // A dark receiver's row (radiance_only) can miss up to its whole row sum: at most 1. Not in the maximum,
+      // which stays what the solve relies on.
+      const bool dark = o.radiance_only && lmax[size_t(leaf)] == 0;
+      st.row_error[p] = dark ? std::min(1.0, err[leaf]) : err[leaf];
+      if (dark) {
+        if (st.row_dark.empty()) st.row_dark.assign(size_t(n), 0);
+        st.row_dark[size_t(p)] = 1;
+      }
+      if (!dark) st.row_error_max = std::max(st.row_error_max, err[leaf]);
       st.radiance_error_max = std::max(st.radiance_error_max, lerr[d.leaf_of[p]]);
     }
     st.seconds_links = since(t_links);

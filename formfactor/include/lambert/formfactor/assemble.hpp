@@ -34,6 +34,7 @@
 // What each assembly admits (per-row error bounds, an independent reciprocity check, entries outside [0, 1])
 // is reported in Stats; check.hpp checks row sums independently with rays.
 // Storage: double (8 N^2 bytes), see dense.hpp.
+#include <cstdint>
 #include <cstddef>
 #include <functional>
 #include <map>
@@ -164,6 +165,9 @@ struct Stats {
   // and a radiance error as about rho delta / (1 - rho (1 + delta)).
   std::vector<double> row_error_bound, row_visibility_sigma;
   double row_error_bound_max = 0, row_visibility_sigma_max = 0;  // maxima over rows
+  // Per row, or empty: 1 where the row was left unresolved because its patch receives nothing that matters (the
+  // hierarchical operator's dark patches, HierarchyOptions::radiance_only); check_row_sums skips those rows.
+  std::vector<std::uint8_t> row_unresolved;
 
   // Independent reciprocity check (adaptive rule only; 0 pairs for the fixed rules): on a deterministic sample
   // of computed pairs (every method represented, up to Options::reciprocity_samples each, independent of the

@@ -27,6 +27,7 @@ struct RowSumCheckOptions {
 
 struct RowSumCheck {
   int patches_checked = 0;
+  int rows_skipped = 0;       // rows the assembly left unresolved (Stats::row_unresolved), not sampled
   long long rays = 0;
   double max_difference = 0;  // max over sampled patches of |assembled row sum - ray estimate|
   double max_ratio = 0;       // max of |difference| / allowed: <= 1 passes

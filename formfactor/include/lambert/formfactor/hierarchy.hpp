@@ -65,6 +65,13 @@ struct HierarchyOptions {
   // Per patch: an upper estimate of its radiance (any unit, >= 0), e.g. a previous solve's; empty = all equal
   // (pure geometric refinement). Links from dark clusters are accepted coarser.
   std::vector<double> brightness;
+  // Per patch (largest channel, >= 0), optional: the emitted radiance. With enclosures, a closed cell without an
+  // emitting patch receives no light (cells exchange none), so its patches' brightness is taken as 0.
+  std::vector<double> emission;
+  // The operator serves a solve only, not form-factor output: node pairs whose patches all have brightness 0
+  // (black non-emitters, dark cells) carry nothing to any solution either way and are refused without a link or a
+  // ray; each receiver's row admits the pair's largest form factor as error (HierarchyStats::dark_patches).
+  bool radiance_only = false;
   // Per-entry tolerance of the exact leaf pairs (F units, as formfactor::Options::tolerance); 0 = auto: the dense
   // assembly's automatic tolerance, or 1e-3 of the link tolerance if that is larger.
   double entry_tolerance = 0;
@@ -104,6 +111,8 @@ struct HierarchyStats {
   double seconds_enclosures = 0;
   long long portals = 0, room_cells = 0;    // openings closed by portals; cells with them closed
   long long pairs_portal_culled = 0;        // node pairs in different rooms whose shaft meets no portal between them
+  long long dark_cells = 0, dark_patches = 0;  // closed cells without an emitter (emission given); patches of brightness 0
+  long long pairs_dark_culled = 0;          // radiance_only: node pairs of brightness 0 on both sides, refused
   double seconds_portals = 0;
   long long pairs_exact_clear = 0, pairs_exact_hidden = 0, pairs_exact_integrated = 0;  // exact visibility path
   long long exact_points = 0, pairs_exact_over_tolerance = 0;
@@ -111,6 +120,7 @@ struct HierarchyStats {
   double tolerance = 0, entry_tolerance = 0;
   double link_tolerance = 0;       // tolerance after the amplification factor (see HierarchyOptions::tolerance)
   std::vector<double> row_error;   // per patch: admitted row error, F units (links' estimates + leaf bounds)
+  std::vector<std::uint8_t> row_dark;  // per patch (radiance_only): 1 if dark, its row unresolved (row_error <= 1)
   // per patch: standard error of the patch-pair entries' ray visibility, combined as independent errors
   // (as formfactor::Stats::row_visibility_sigma); the cluster links' visibility is in row_error.
   std::vector<double> row_visibility_sigma;
