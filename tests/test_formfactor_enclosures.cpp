@@ -351,6 +351,23 @@ TEST(Enclosures, CellsDoNotDependOnPositionOrThreads) {
   }
 }
 
+// The hierarchical operator's options of tests 9-9c: a coarse tolerance (far links occur in small scenes), rays.
+formfactor::HierarchyOptions coarse_with_rays() {
+  formfactor::HierarchyOptions ho;
+  ho.tolerance = 5e-2;
+  ho.visibility = true;
+  ho.visibility_method = formfactor::VisibilityMethod::Rays;
+  return ho;
+}
+
+// Two closed rooms 2 x 2 x 1 m side by side (4 x 4 patches per wall), the first with a furniture box standing on its
+// floor (tests 9 and 9c).
+void two_rooms(SceneBuilder& s, Range& lit, Range& furniture, Range& dark) {
+  lit = s.add(mesh::shapes::box(Vec3(0, 0, 0), Vec3(2, 2, 1), 4, true));
+  furniture = s.add(mesh::shapes::box(Vec3(0.4, 0.6, 0.0001), Vec3(1.0, 1.4, 0.4), 1, false));
+  dark = s.add(mesh::shapes::box(Vec3(2.1, 0, 0), Vec3(4.1, 2, 1), 4, true));
+}
+
 // 9. The hierarchical operator with enclosures on and off, two closed rooms 2 x 2 x 1 m side by side (the lit one
 // with an emitting ceiling patch and a furniture box, the other dark), 4 x 4 patches per wall: far links, blocked
 // links and leaf pairs all occur. The pairs the cells refuse carry no light (closed walls between them), so both
@@ -363,19 +380,15 @@ TEST(Enclosures, CellsDoNotDependOnPositionOrThreads) {
 // room with enclosures on.
 TEST(Enclosures, HierarchyWithCellsMatchesWithout) {
   SceneBuilder s;
-  const Range lit = s.add(mesh::shapes::box(Vec3(0, 0, 0), Vec3(2, 2, 1), 4, true));
-  const Range furniture = s.add(mesh::shapes::box(Vec3(0.4, 0.6, 0.0001), Vec3(1.0, 1.4, 0.4), 1, false));
-  const Range dark = s.add(mesh::shapes::box(Vec3(2.1, 0, 0), Vec3(4.1, 2, 1), 4, true));
+  Range lit, furniture, dark;
+  two_rooms(s, lit, furniture, dark);
   const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(s.polys);
   const int n = g.size();
   const int emitter = patch_at(g, Vec3(1.25, 0.75, 1));  // a ceiling patch of the lit room
   formfactor::HierarchyStats st[2];
   std::vector<formfactor::HierarchicalOperator> H;
   for (int on = 0; on < 2; ++on) {
-    formfactor::HierarchyOptions ho;
-    ho.tolerance = 5e-2;
-    ho.visibility = true;
-    ho.visibility_method = formfactor::VisibilityMethod::Rays;
+    formfactor::HierarchyOptions ho = coarse_with_rays();
     ho.enclosures = on == 1;
     H.push_back(formfactor::build_hierarchy(g, ho, &st[on]));
   }
@@ -431,10 +444,7 @@ TEST(Enclosures, CellsAreRefusedOnceWhereTheTreeSplitsThem) {
     rooms.push_back(s.add(mesh::shapes::box(Vec3(1.1 * k, 0, 0), Vec3(1.1 * k + 1, 1, 1), 3, true)));
   const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(s.polys);
   const int n = g.size();
-  formfactor::HierarchyOptions ho;
-  ho.tolerance = 5e-2;
-  ho.visibility = true;
-  ho.visibility_method = formfactor::VisibilityMethod::Rays;
+  formfactor::HierarchyOptions ho = coarse_with_rays();
   ho.portals = false;
   formfactor::HierarchyStats st;
   const formfactor::HierarchicalOperator H = formfactor::build_hierarchy(g, ho, &st);
@@ -468,9 +478,8 @@ TEST(Enclosures, CellsAreRefusedOnceWhereTheTreeSplitsThem) {
 // flagged (HierarchyStats::row_dark) with an admitted error of at most 1; the radiance-relative error no larger.
 TEST(Enclosures, DarkCellIsRefusedAndTheLitRowsAreUnchanged) {
   SceneBuilder s;
-  const Range lit = s.add(mesh::shapes::box(Vec3(0, 0, 0), Vec3(2, 2, 1), 4, true));
-  const Range lit_box = s.add(mesh::shapes::box(Vec3(0.4, 0.6, 0.0001), Vec3(1.0, 1.4, 0.4), 1, false));
-  const Range dark = s.add(mesh::shapes::box(Vec3(2.1, 0, 0), Vec3(4.1, 2, 1), 4, true));
+  Range lit, lit_box, dark;
+  two_rooms(s, lit, lit_box, dark);
   const Range dark_box = s.add(mesh::shapes::box(Vec3(2.6, 0.6, 0.0001), Vec3(3.2, 1.4, 0.4), 1, false));
   const mesh::PatchGeometry g = mesh::PatchGeometry::from_polygons(s.polys);
   const int n = g.size();
@@ -480,10 +489,7 @@ TEST(Enclosures, DarkCellIsRefusedAndTheLitRowsAreUnchanged) {
   formfactor::HierarchyStats st[2];
   std::vector<formfactor::HierarchicalOperator> H;
   for (int on = 0; on < 2; ++on) {
-    formfactor::HierarchyOptions ho;
-    ho.tolerance = 5e-2;
-    ho.visibility = true;
-    ho.visibility_method = formfactor::VisibilityMethod::Rays;
+    formfactor::HierarchyOptions ho = coarse_with_rays();
     ho.brightness.assign(size_t(n), 1.0);  // the a-priori bound of a grey scene: every patch may be lit
     if (on) {
       ho.emission.assign(size_t(n), 0.0);

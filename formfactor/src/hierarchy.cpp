@@ -1035,20 +1035,17 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     throw InputError("hierarchical operator: max_reflectance must be < 1 (got " + std::to_string(o.max_reflectance) + ")");
   if (o.rays_per_pair < 1 || o.cluster_rays < 1)
     throw InputError("hierarchical operator: rays per pair and per cluster link must be >= 1");
-  if (!o.brightness.empty()) {
-    LAMBERT_CHECK(o.brightness.size() == size_t(n), "hierarchical operator: brightness needs one value per patch");
+  // Per-patch values, when given: one per patch, finite and >= 0.
+  auto check_per_patch = [n](const std::vector<double>& v, const char* what) {
+    if (v.empty()) return;
+    LAMBERT_CHECK(v.size() == size_t(n), std::string("hierarchical operator: ") + what + " needs one value per patch");
     for (int p = 0; p < n; ++p)
-      if (!(o.brightness[p] >= 0) || !std::isfinite(o.brightness[p]))
-        throw InputError("hierarchical operator: brightness of patch " + std::to_string(p) + " is " +
-                         std::to_string(o.brightness[p]) + " (must be finite and >= 0)");
-  }
-  if (!o.emission.empty()) {
-    LAMBERT_CHECK(o.emission.size() == size_t(n), "hierarchical operator: emission needs one value per patch");
-    for (int p = 0; p < n; ++p)
-      if (!(o.emission[p] >= 0) || !std::isfinite(o.emission[p]))
-        throw InputError("hierarchical operator: emission of patch " + std::to_string(p) + " is " +
-                         std::to_string(o.emission[p]) + " (must be finite and >= 0)");
-  }
+      if (!(v[p] >= 0) || !std::isfinite(v[p]))
+        throw InputError(std::string("hierarchical operator: ") + what + " of patch " + std::to_string(p) + " is " +
+                         std::to_string(v[p]) + " (must be finite and >= 0)");
+  };
+  check_per_patch(o.brightness, "brightness");
+  check_per_patch(o.emission, "emission");
   const MemoryLimit sys = o.max_bytes ? MemoryLimit{o.max_bytes, "max_bytes"} : system_memory_limit();
   st.bytes_estimate = estimate_hierarchy_bytes(std::size_t(n), o.tolerance);
   if (st.bytes_estimate > sys.bytes)
