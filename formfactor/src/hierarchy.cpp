@@ -317,6 +317,7 @@ class Refiner {
   // rooms: the closed surfaces with the openings closed by portals (portals.hpp), or null.
   void setup(const std::vector<int>& occ, std::span<const int> cell, const detail::Rooms* rooms = nullptr) {
     const int n = d_.n;
+    const int cells = cell.empty() ? 0 : std::max(0, *std::max_element(cell.begin(), cell.end()) + 1);
     // Brightness per node (max over its patches), relative to the brightest.
     lmax_.assign(d_.nodes.size(), 1.0);
     lref_ = 1;
@@ -328,8 +329,7 @@ class Refiner {
       // pairs across cells on the same grounds), so its radiance is 0 in any solution.
       std::vector<std::uint8_t> dark;
       if (!o_.emission.empty() && !cell.empty()) {
-        const int cells = *std::max_element(cell.begin(), cell.end()) + 1;
-        std::vector<std::uint8_t> emits(size_t(std::max(cells, 0)), 0);
+        std::vector<std::uint8_t> emits(size_t(cells), 0);
         for (int p = 0; p < n; ++p)
           if (cell[p] >= 0 && o_.emission[size_t(p)] > 0) emits[size_t(cell[p])] = 1;
         dark.assign(size_t(n), 0);
@@ -378,8 +378,7 @@ class Refiner {
     // a patch of unknown cell (bit 1): no patch outside a node of the first kind shares a cell with one inside it.
     node_cells_.assign(d_.nodes.size(), 0);
     if (occlusion_ && !cell.empty()) {
-      const int cells = cell.empty() ? 0 : *std::max_element(cell.begin(), cell.end()) + 1;
-      std::vector<int> first(size_t(std::max(cells, 0)), n), last(size_t(std::max(cells, 0)), -1);
+      std::vector<int> first(size_t(cells), n), last(size_t(cells), -1);
       for (int k = 0; k < n; ++k)
         if (const int c = cell[d_.perm[k]]; c >= 0) first[size_t(c)] = std::min(first[size_t(c)], k), last[size_t(c)] = k;
       std::vector<int> lo(d_.nodes.size()), hi(d_.nodes.size());
