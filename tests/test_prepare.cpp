@@ -446,8 +446,8 @@ TEST(PrepareRepeatable, SameSoupWhenPreparedTwiceInOneProcess) {
 }
 
 // The orientation rays and the hidden-fragment rays are cast for all faces in parallel; every face draws from its
-// own seeded generator and the results are merged in face order, so one thread and several give the same soup, bit
-// for bit. The floor plan exercises both (walls standing on floors: hidden fragments removed).
+// own seeded generator (orientation) or from one fixed sequence (hidden fragments) and the results are merged in
+// face order, so one thread and several give the same soup, bit for bit. The floor plan exercises both (walls standing on floors: hidden fragments removed).
 TEST(PrepareRepeatable, SameSoupForAnyThreadCount) {
   const PolygonSoup in = io::read_obj(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj");
   auto run = [&](int threads, Report& r) {

@@ -654,11 +654,20 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
     conform(s, tol, corner_of_piece);
   }
 
-  // Hidden fragments: from a point inside the piece, rays into its front hemisphere; a face in the
-  // piece's own plane is met only at the ray's start and does not count. Covered when the first face
-  // met (or any face met at the same distance: a wall's top under the ceiling) is met from its back.
-  // Hidden when nearly all rays (>= 15 of 16) are covered: under a wall, inside a solid. Then a face
-  // coincident with a hidden one and facing the other way (a wall's bottom on the removed floor strip)
+  // Hidden fragments: rays from points of the piece into its front hemisphere; a face in the piece's own plane is
+  // met only at the ray's start and does not count. A ray is covered when the first face met (or any face met at
+  // the same distance: a wall's top under the ceiling) is met from its back: under a wall, inside a solid. A ray
+  // that first meets the front of another tested face leans on it: a cavity (an open-backed bookshelf against a
+  // wall) is bounded by the backs of the solid and by the fronts of the wall and floor pieces inside it, which see
+  // each other. A piece is hidden when every ray is covered or leans on hidden pieces (the largest such set, found
+  // by dropping pieces until none leans on a kept one). No fraction is tolerated: a face partly seen (a ceiling tile
+  // a light panel hangs under, 2 cm below) is kept, whatever the rest of it sees; removing it would open the room.
+  // The ray origins and directions come from one low-discrepancy sequence for every face (Roberts' R5: fractional
+  // parts of i / phi^j, phi^6 = phi + 1), not from a generator seeded by the face's index, so the answer depends
+  // on the face's shape and surroundings only, not on where it sits in the file or in space: a part seen from a
+  // third of the face gets about a third of the origins. Interior origins (uniform by area) come first, then
+  // origins just inside the boundary (kBoundaryRays, by length), where a gap along an edge is seen widest.
+  // Then a face coincident with a hidden one and facing the other way (a wall's bottom on the removed floor strip)
   // is hidden too: between coincident faces.
   const int n = static_cast<int>(s.faces.size());
   std::vector<char> usable(n);
@@ -667,48 +676,124 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
   std::vector<char> hidden(n, 0);
   std::vector<int> hidden_ids;
   double hidden_area = 0;
-  constexpr int kRays = 16;
+  constexpr int kInteriorRays = 48, kBoundaryRays = 16;
+  static const std::array<double, 5> kAlpha = [] {
+    double phi = 1.2;  // the real root of x^6 = x + 1 (Newton)
+    for (int i = 0; i < 50; ++i) phi -= (std::pow(phi, 6) - phi - 1) / (6 * std::pow(phi, 5) - 1);
+    std::array<double, 5> alpha{};
+    for (int j = 0; j < 5; ++j) alpha[j] = std::pow(phi, -(j + 1));
+    return alpha;
+  }();
+  auto sequence = [](int i, int j) {
+    const double x = 0.5 + kAlpha[j] * (i + 1);
+    return x - std::floor(x);
+  };
   auto coplanar = [&](int f, int g) {
     const Vec3 &n_f = rays.normal(f), &n_g = rays.normal(g);
     return std::abs(n_f.dot(n_g)) > 1 - 1e-9 &&
            std::abs(n_f.dot(s.positions[s.faces[g].vertices[0]] - s.positions[s.faces[f].vertices[0]])) <= tol;
   };
+  auto tested = [&](int f) { return check[f] && rays.has(f); };
   std::vector<Vec3> probe(n, Vec3::Zero());
-  // Faces in parallel, each from its own seeded generator, each writing only its own entries: the same result for
-  // any thread count.
+  std::vector<char> seen(n, 0);                 // a ray met no back: it escaped, or met the front of a kept face
+  std::vector<std::vector<int>> leans_on(n);    // tested faces whose fronts its rays met first (sorted, unique)
+  std::vector<int> cast(n, 0), covered(n, 0);  // rays cast, and covered (met a back first)
+  // Rays [from, to) of face k, until one is seen (meets the front of a face that is not tested, or of one in
+  // `kept`, or escapes).
+  auto cast_rays = [&](int k, int from, int to, const std::vector<char>& kept, std::vector<int>& skip) {
+    const Vec3& nk = rays.normal(k);
+    const std::vector<Vec3> poly = corners(s, k);
+    std::vector<double> perimeter(poly.size() + 1, 0);  // cumulative edge lengths
+    for (size_t e = 0; e < poly.size(); ++e)
+      perimeter[e + 1] = perimeter[e] + (poly[(e + 1) % poly.size()] - poly[e]).norm();
+    std::vector<int>& leans = leans_on[k];
+    for (int r = from; r < to && !seen[k]; ++r) {
+      Vec3 o;
+      if (r < kInteriorRays) {
+        o = rays.sample(k, sequence(r, 0), sequence(r, 1), sequence(r, 2));
+      } else {  // 4 tol inside an edge (left of it, seen from the front), if that is inside the face
+        const double at = sequence(r, 0) * perimeter.back();
+        const size_t e = std::min(poly.size() - 1,
+                                  size_t(std::upper_bound(perimeter.begin(), perimeter.end(), at) - perimeter.begin()) - 1);
+        const Vec3 edge = poly[(e + 1) % poly.size()] - poly[e];
+        const double len = edge.norm();
+        if (!(len > 8 * tol)) continue;
+        o = poly[e] + edge * ((at - perimeter[e]) / len) + nk.cross(edge / len) * (4 * tol);
+        if (!inside_polygon(poly, nk, o)) continue;
+      }
+      const Vec3 d = cosine_direction(nk, sequence(r, 3), sequence(r, 4));
+      skip.assign(1, k);
+      auto skipped = [&](int f) { return std::find(skip.begin(), skip.end(), f) != skip.end(); };
+      bool back = false;
+      int lean = -1;
+      double first_t = -1;
+      for (int tries = 0; tries < 8; ++tries) {
+        // Past the first face met, only faces at its distance (within tol) matter.
+        const auto h = rays.first(o, d, skipped, first_t < 0 ? std::numeric_limits<double>::infinity() : first_t + tol);
+        if (h.face < 0) break;
+        skip.push_back(h.face);
+        if (h.t <= tol && coplanar(k, h.face)) continue;  // touches the start only
+        if (first_t < 0) first_t = h.t;
+        if (h.t > first_t + tol) break;
+        back = back || !h.front;
+        if (h.front && tested(h.face) && (lean < 0 || h.face < lean)) lean = h.face;
+      }
+      ++cast[k];
+      if (back) {
+        ++covered[k];
+      } else if (lean < 0 || kept[lean]) {
+        seen[k] = 1;
+      } else if (std::find(leans.begin(), leans.end(), lean) == leans.end()) {
+        leans.push_back(lean);
+      }
+    }
+    std::sort(leans.begin(), leans.end());
+  };
+  // flag[k] = 1 for every face that leans, directly or through others, on a flagged face (breadth first over the
+  // reversed lean edges).
+  auto spread = [&](std::vector<char>& flag) {
+    std::vector<int> start(n + 1, 0), from;
+    for (int k = 0; k < n; ++k)
+      for (int f : leans_on[k]) ++start[f + 1];
+    for (int k = 0; k < n; ++k) start[k + 1] += start[k];
+    from.resize(start[n]);
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (int k = 0; k < n; ++k)
+      for (int f : leans_on[k]) from[fill[f]++] = k;
+    std::vector<int> queue;
+    for (int k = 0; k < n; ++k)
+      if (flag[k]) queue.push_back(k);
+    while (!queue.empty()) {
+      const int f = queue.back();
+      queue.pop_back();
+      for (int i = start[f]; i < start[f + 1]; ++i)
+        if (!flag[from[i]]) flag[from[i]] = 1, queue.push_back(from[i]);
+    }
+  };
+  // Two rounds, faces in parallel, each writing only its own entries (the same result for any thread count): the
+  // first kFirstRays rays of every tested face; then, for the faces that lean on no seen one, the rest, with a ray
+  // that meets the front of a kept face ending the face's test (a face that sees a kept face is kept). The answer is
+  // the one all rays of every face would give; most faces of a room are decided in the first round.
+  constexpr int kFirstRays = 16;
+  const std::vector<char> none(n, 0);
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& range) {
     std::vector<int> skip;
-    for (int k = range.begin(); k < range.end(); ++k) {
-      if (!check[k] || !rays.has(k)) continue;
-      std::mt19937_64 rng(0xD1B54A32D192ED03ull ^ std::uint64_t(k) * 0x9E3779B97F4A7C15ull);
-      probe[k] = rays.sample(k, rng);
-      int covered = 0, uncovered = 0;
-      for (int r = 0; r < kRays && uncovered <= 1; ++r) {  // two uncovered rays decide it: not hidden
-        const Vec3 o = rays.sample(k, rng);
-        const Vec3 d = cosine_direction(rays.normal(k), rng);
-        skip.assign(1, k);
-        auto skipped = [&](int f) { return std::find(skip.begin(), skip.end(), f) != skip.end(); };
-        bool back = false;
-        double first_t = -1;
-        for (int tries = 0; tries < 8; ++tries) {
-          // Past the first face met, only faces at its distance (within tol) matter.
-          const auto h = rays.first(o, d, skipped, first_t < 0 ? std::numeric_limits<double>::infinity() : first_t + tol);
-          if (h.face < 0) break;
-          skip.push_back(h.face);
-          if (h.t <= tol && coplanar(k, h.face)) continue;  // touches the start only
-          if (first_t < 0) first_t = h.t;
-          if (h.t > first_t + tol) break;
-          back = back || !h.front;
-        }
-        if (back) {
-          ++covered;
-        } else {
-          ++uncovered;
-        }
+    for (int k = range.begin(); k < range.end(); ++k)
+      if (tested(k)) {
+        probe[k] = rays.sample(k, 0.5, 1.0 / 3, 1.0 / 3);
+        cast_rays(k, 0, kFirstRays, none, skip);
       }
-      if (covered >= kRays - 1) hidden[k] = 1;
-    }
   });
+  std::vector<char> kept = seen;
+  spread(kept);
+  tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& range) {
+    std::vector<int> skip;
+    for (int k = range.begin(); k < range.end(); ++k)
+      if (tested(k) && !kept[k]) cast_rays(k, kFirstRays, kInteriorRays + kBoundaryRays, kept, skip);
+  });
+  for (int k = 0; k < n; ++k) kept[k] = !tested(k) || kept[k] || seen[k] || 4 * covered[k] < cast[k];
+  spread(kept);  // the largest set of faces that lean only on each other
+  for (int k = 0; k < n; ++k) hidden[k] = !kept[k];
   // Between coincident faces: opposite-facing, coplanar, its probe point inside a hidden face of the first pass.
   // Candidates from boxes (the probe point within tol of the hidden face's box), not every face against every
   // hidden one: that was quadratic (a 1M-face building has ~4e4 hidden fragments).
@@ -743,10 +828,10 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
       hidden_area += 0.5 * newell_normal(corners(s, k)).norm();
     }
   if (!hidden_ids.empty()) {
-    std::vector<SoupFace> kept;
+    std::vector<SoupFace> remaining;
     for (int k = 0; k < n; ++k)
-      if (!hidden[k]) kept.push_back(std::move(s.faces[k]));
-    s.faces = std::move(kept);
+      if (!hidden[k]) remaining.push_back(std::move(s.faces[k]));
+    s.faces = std::move(remaining);
     report.warn("hidden_fragments_removed", static_cast<long>(hidden_ids.size()),
                 plural(static_cast<long>(hidden_ids.size()), "hidden fragment was", "hidden fragments were") +
                     " removed (" + num(hidden_area) +

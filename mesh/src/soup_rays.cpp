@@ -253,10 +253,15 @@ SoupRays::Hit SoupRays::first(const Vec3& o, const Vec3& d, const std::function<
 
 Vec3 SoupRays::sample(int k, std::mt19937_64& rng) const {
   std::uniform_real_distribution<double> u(0, 1);
+  const double u0 = u(rng), u1 = u(rng), u2 = u(rng);
+  return sample(k, u0, u1, u2);
+}
+
+Vec3 SoupRays::sample(int k, double u0, double u1, double u2) const {
   const auto& cum = cum_area_[k];
-  const double a = u(rng) * cum.back();
+  const double a = u0 * cum.back();
   const size_t i = std::min(cum.size() - 1, size_t(std::upper_bound(cum.begin(), cum.end(), a) - cum.begin()));
-  double r1 = u(rng), r2 = u(rng);
+  double r1 = u1, r2 = u2;
   if (r1 + r2 > 1) r1 = 1 - r1, r2 = 1 - r2;
   const auto& t = tris_of_[k][i];
   return t[0] + r1 * (t[1] - t[0]) + r2 * (t[2] - t[0]);
@@ -264,7 +269,12 @@ Vec3 SoupRays::sample(int k, std::mt19937_64& rng) const {
 
 Vec3 cosine_direction(const Vec3& n, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(0, 1);
-  const double r = std::sqrt(u(rng)), phi = 2 * std::numbers::pi * u(rng);
+  const double u0 = u(rng), u1 = u(rng);
+  return cosine_direction(n, u0, u1);
+}
+
+Vec3 cosine_direction(const Vec3& n, double u0, double u1) {
+  const double r = std::sqrt(u0), phi = 2 * std::numbers::pi * u1;
   const Vec3 a = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
   const Vec3 b = n.cross(a);
   return (r * std::cos(phi) * a + r * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - r * r)) * n).normalized();

@@ -34,6 +34,8 @@ class SoupRays {
   const Vec3& normal(int k) const { return normal_[k]; }
   // A random point inside face k (uniform by area over its triangles).
   Vec3 sample(int k, std::mt19937_64& rng) const;
+  // The same from three numbers in [0, 1): u0 picks the triangle (by area), u1 and u2 the point in it.
+  Vec3 sample(int k, double u0, double u1, double u2) const;
   bool has(int k) const { return !tris_of_[k].empty(); }
 
  private:
@@ -46,5 +48,7 @@ class SoupRays {
 
 // A cosine-distributed unit direction in the hemisphere around the unit normal n.
 Vec3 cosine_direction(const Vec3& n, std::mt19937_64& rng);
+// The same from two numbers in [0, 1) (u0: squared sine of the angle to n, u1: azimuth / 2 pi).
+Vec3 cosine_direction(const Vec3& n, double u0, double u1);
 
 }  // namespace lambert::mesh::detail
