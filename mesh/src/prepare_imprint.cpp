@@ -770,27 +770,27 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
         if (!flag[from[i]]) flag[from[i]] = 1, queue.push_back(from[i]);
     }
   };
-  // Two rounds, faces in parallel, each writing only its own entries (the same result for any thread count): the
-  // first kFirstRays rays of every tested face; then, for the faces that lean on no seen one, the rest, with a ray
-  // that meets the front of a kept face ending the face's test (a face that sees a kept face is kept). The answer is
-  // the one all rays of every face would give; most faces of a room are decided in the first round.
-  constexpr int kFirstRays = 16;
-  const std::vector<char> none(n, 0);
-  tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& range) {
-    std::vector<int> skip;
-    for (int k = range.begin(); k < range.end(); ++k)
-      if (tested(k)) {
-        probe[k] = rays.sample(k, 0.5, 1.0 / 3, 1.0 / 3);
-        cast_rays(k, 0, kFirstRays, none, skip);
-      }
-  });
-  std::vector<char> kept = seen;
-  spread(kept);
-  tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& range) {
-    std::vector<int> skip;
-    for (int k = range.begin(); k < range.end(); ++k)
-      if (tested(k) && !kept[k]) cast_rays(k, kFirstRays, kInteriorRays + kBoundaryRays, kept, skip);
-  });
+  // Rounds of rays, faces in parallel, each writing only its own entries (the same result for any thread count):
+  // rays [0, 4) of every tested face, then [4, 16) and [16, 64) of the faces that lean on no kept one, with a ray
+  // that meets the front of a kept face ending the face's test (a face that sees a kept face is kept), and after
+  // each round every face that leans on a kept one kept. The answer is the one all rays of every face would give
+  // (a face kept early leans on a kept one whatever its other rays meet); most faces of a room are decided by
+  // their first rays, through the few that see a light or a window.
+  std::vector<char> kept(n, 0);
+  int done = 0;
+  for (const int next : {4, 16, kInteriorRays + kBoundaryRays}) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, n, 16), [&](const tbb::blocked_range<int>& range) {
+      std::vector<int> skip;
+      for (int k = range.begin(); k < range.end(); ++k)
+        if (tested(k) && !kept[k]) {
+          if (done == 0) probe[k] = rays.sample(k, 0.5, 1.0 / 3, 1.0 / 3);
+          cast_rays(k, done, next, kept, skip);
+        }
+    });
+    for (int k = 0; k < n; ++k) kept[k] = kept[k] || seen[k];
+    spread(kept);
+    done = next;
+  }
   for (int k = 0; k < n; ++k) kept[k] = !tested(k) || kept[k] || seen[k] || 4 * covered[k] < cast[k];
   spread(kept);  // the largest set of faces that lean only on each other
   for (int k = 0; k < n; ++k) hidden[k] = !kept[k];
