@@ -14,6 +14,7 @@
 #include <random>
 #include <string>
 #include <unordered_map>
+#include <tuple>
 #include <vector>
 
 #include <CGAL/Constrained_Delaunay_triangulation_2.h>
@@ -439,30 +440,46 @@ bool inside_polygon(const std::vector<Vec3>& poly, const Vec3& n, const Vec3& p)
   return CGAL::bounded_side_2(q.begin(), q.end(), x, K()) == CGAL::ON_BOUNDED_SIDE;
 }
 
-// Inserts into every face edge the vertices with used[v] != 0 that lie inside it (within tol).
+// Inserts into every face edge the vertices with used[v] != 0 that lie inside it (within tol). The edges' boxes are
+// built in parallel and intersected with CGAL's sequential box intersection (its Parallel_tag took 9.5 s instead of
+// 3.1 s on the million-face building); what it finds is sorted, not kept in a map (conform 7.2 -> 4.1 s there).
 void conform(PolygonSoup& s, double tol, std::vector<char> used) {
   used.resize(s.positions.size(), 0);
-  std::vector<Box> vboxes, eboxes;
+  std::vector<Box> vboxes;
   for (int v = 0; v < static_cast<int>(used.size()); ++v)
     if (used[v]) {
       const Vec3& p = s.positions[v];
       double lo[3] = {p.x() - tol, p.y() - tol, p.z() - tol}, hi[3] = {p.x() + tol, p.y() + tol, p.z() + tol};
       vboxes.emplace_back(lo, hi, v);
     }
-  std::vector<std::pair<int, int>> edges;  // (face, corner): edge from corner c to c + 1
-  for (int k = 0; k < static_cast<int>(s.faces.size()); ++k) {
-    const auto& fv = s.faces[k].vertices;
-    for (size_t c = 0; c < fv.size(); ++c) {
-      const Vec3 &a = s.positions[fv[c]], &b = s.positions[fv[(c + 1) % fv.size()]];
-      double lo[3], hi[3];
-      for (int i = 0; i < 3; ++i) lo[i] = std::min(a[i], b[i]) - tol, hi[i] = std::max(a[i], b[i]) + tol;
-      eboxes.emplace_back(lo, hi, static_cast<int>(edges.size()));
-      edges.emplace_back(k, static_cast<int>(c));
+  if (vboxes.empty()) return;
+  const int nf = static_cast<int>(s.faces.size());
+  std::vector<int> first_edge(nf + 1, 0);  // face k's edges are first_edge[k] .. first_edge[k + 1] - 1
+  for (int k = 0; k < nf; ++k) first_edge[k + 1] = first_edge[k] + static_cast<int>(s.faces[k].vertices.size());
+  std::vector<int> edge_face(first_edge[nf]);
+  std::vector<Box> eboxes(first_edge[nf]);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nf, 1024), [&](const tbb::blocked_range<int>& range) {
+    for (int k = range.begin(); k < range.end(); ++k) {
+      const auto& fv = s.faces[k].vertices;
+      for (size_t c = 0; c < fv.size(); ++c) {
+        const Vec3 &a = s.positions[fv[c]], &b = s.positions[fv[(c + 1) % fv.size()]];
+        double lo[3], hi[3];
+        for (int i = 0; i < 3; ++i) lo[i] = std::min(a[i], b[i]) - tol, hi[i] = std::max(a[i], b[i]) + tol;
+        const int e = first_edge[k] + static_cast<int>(c);
+        eboxes[e] = Box(lo, hi, e);
+        edge_face[e] = k;
+      }
     }
-  }
-  std::map<std::pair<int, int>, std::vector<std::pair<double, int>>> inserts;
+  });
+  struct Insert {
+    int edge;  // first_edge[face] + corner: the edge from that corner to the next
+    double t;
+    int v;
+    bool operator<(const Insert& o) const { return std::tie(edge, t, v) < std::tie(o.edge, o.t, o.v); }
+  };
+  std::vector<Insert> inserts;
   CGAL::box_intersection_d(vboxes.begin(), vboxes.end(), eboxes.begin(), eboxes.end(), [&](const Box& vb, const Box& eb) {
-    const auto [k, c] = edges[eb.info()];
+    const int e = eb.info(), k = edge_face[e], c = e - first_edge[k];
     const auto& fv = s.faces[k].vertices;
     const int ia = fv[c], ib = fv[(c + 1) % fv.size()], v = vb.info();
     if (v == ia || v == ib) return;
@@ -472,23 +489,20 @@ void conform(PolygonSoup& s, double tol, std::vector<char> used) {
     const double t = (p - a).dot(b - a) / l2;
     if (t * std::sqrt(l2) <= tol || (1 - t) * std::sqrt(l2) <= tol) return;
     if ((a + t * (b - a) - p).norm() > tol) return;
-    inserts[{k, c}].emplace_back(t, v);
+    inserts.push_back({e, t, v});
   });
-  if (inserts.empty()) return;
-  std::map<int, std::vector<int>> by_face;
-  for (auto& [kc, list] : inserts) by_face[kc.first].push_back(kc.second);
-  for (auto& [k, cs] : by_face) {
+  std::sort(inserts.begin(), inserts.end());
+  for (size_t i = 0; i < inserts.size();) {
+    const int k = edge_face[inserts[i].edge];
     auto& fv = s.faces[k].vertices;
     std::vector<int> out;
     for (size_t c = 0; c < fv.size(); ++c) {
       out.push_back(fv[c]);
-      const auto it = inserts.find({k, static_cast<int>(c)});
-      if (it == inserts.end()) continue;
-      auto list = it->second;
-      std::sort(list.begin(), list.end());
-      for (const auto& [t, v] : list)
+      for (; i < inserts.size() && inserts[i].edge == first_edge[k] + static_cast<int>(c); ++i) {
+        const int v = inserts[i].v;
         if (std::find(out.begin(), out.end(), v) == out.end() && std::find(fv.begin(), fv.end(), v) == fv.end())
           out.push_back(v);
+      }
     }
     fv = std::move(out);
   }
