@@ -4,6 +4,8 @@
 #include "enclosures.hpp"
 
 #include <polyclipping/clipper.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -113,10 +115,12 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
           in_plane[d][std::llround(directions[d].dot(a - centre) / eps)].push_back({p, int(i)});
     }
   }
-  ClipperLib::Clipper clipper;
-  ClipperLib::Paths own, all, merged, ring, cover, near;
-  std::vector<ClipperLib::IntRect> own_box;
-  for (int k = 0; k < planes; ++k) {
+  // The planes in parallel, each with its own Clipper and buffers, their openings gathered in plane order: the same
+  // list for any thread count.
+  auto openings_of = [&](int k, std::vector<std::vector<Vec3>>& found) {
+    ClipperLib::Clipper clipper;
+    ClipperLib::Paths own, all, merged, ring, cover, near;
+    std::vector<ClipperLib::IntRect> own_box;
     const int b = count[size_t(k)], e = count[size_t(k) + 1];
     // The plane's frame: its normal, origin at its first patch's centroid.
     const int p0 = members[size_t(b)];
@@ -138,7 +142,7 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
       if (!ClipperLib::Orientation(path)) ClipperLib::ReversePath(path);  // faces facing either way: all positive
       own.push_back(std::move(path));
     }
-    if (!fits || own.empty()) continue;
+    if (!fits || own.empty()) return;
     own_box.clear();
     for (const ClipperLib::Path& q : own) {
       ClipperLib::IntRect r{q[0].X, q[0].Y, q[0].X, q[0].Y};
@@ -171,13 +175,13 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
         }
       }
     }
-    if (!fits || all.size() < 2) continue;  // one simple polygon has no hole
+    if (!fits || all.size() < 2) return;  // one simple polygon has no hole
     // Paths, not a PolyTree, and not strictly simple: both make Clipper 6 quadratic in the polygons that share
     // edges (a ground of 6,000 triangles took minutes). A hole is a path of negative orientation (inputs positive,
     // non-zero fill); one that touches itself is left out below (the ear clipping refuses it).
     clipper.Clear();
     clipper.AddPaths(all, ClipperLib::ptSubject, true);
-    if (!clipper.Execute(ClipperLib::ctUnion, merged, ClipperLib::pftNonZero, ClipperLib::pftNonZero)) continue;
+    if (!clipper.Execute(ClipperLib::ctUnion, merged, ClipperLib::pftNonZero, ClipperLib::pftNonZero)) return;
     for (const ClipperLib::Path& contour : merged) {
       if (ClipperLib::Orientation(contour)) continue;
       ClipperLib::Path hole = contour;
@@ -227,9 +231,15 @@ std::vector<std::vector<Vec3>> find_openings(const mesh::PatchGeometry& g, doubl
       }
       // A hole the ear clipping cannot take (left open: its rooms stay one cell, which only refuses less).
       if (mesh::triangulate_polygon(poly, nrm).empty()) continue;
-      out.push_back(std::move(poly));
+      found.push_back(std::move(poly));
     }
-  }
+  };
+  std::vector<std::vector<std::vector<Vec3>>> per_plane(static_cast<size_t>(planes));
+  tbb::parallel_for(tbb::blocked_range<int>(0, planes, 1), [&](const tbb::blocked_range<int>& range) {
+    for (int k = range.begin(); k < range.end(); ++k) openings_of(k, per_plane[size_t(k)]);
+  });
+  for (auto& found : per_plane)
+    for (auto& poly : found) out.push_back(std::move(poly));
   return out;
 }
 
