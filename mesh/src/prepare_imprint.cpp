@@ -674,8 +674,10 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
   // that first meets the front of another tested face leans on it: a cavity (an open-backed bookshelf against a
   // wall) is bounded by the backs of the solid and by the fronts of the wall and floor pieces inside it, which see
   // each other. A piece is hidden when every ray is covered or leans on hidden pieces (the largest such set, found
-  // by dropping pieces until none leans on a kept one). No fraction is tolerated: a face partly seen (a ceiling tile
-  // a light panel hangs under, 2 cm below) is kept, whatever the rest of it sees; removing it would open the room.
+  // by dropping pieces until none leans on a kept one) and at least a quarter of its rays are covered (a room whose
+  // faces are all split, hence all tested, leans on itself but meets no back side; the floor plan's cavities have
+  // 31-95 % covered). No ray may be seen: a face partly seen (a ceiling tile a light panel hangs under, 2 cm below)
+  // is kept, whatever the rest of it sees; removing it would open the room.
   // The ray origins and directions come from one low-discrepancy sequence for every face (Roberts' R5: fractional
   // parts of i / phi^j, phi^6 = phi + 1), not from a generator seeded by the face's index, so the answer depends
   // on the face's shape and surroundings only, not on where it sits in the file or in space: a part seen from a
