@@ -251,6 +251,8 @@ def setting(r):
     s = r["rule"]
     if r["case"] in ("furnace", "scale"):
         s += f", {r['rays']:g} rays"
+    if r["case"] == "visibility":
+        s = f"exact, tol {r['ff_tolerance']}" if r["visibility"] == "exact" else f"{s}, {r['rays']:g} rays"
     if r["case"] == "solver":
         s = f"{r['method']}, tol {r['solve_tolerance']}"
     return s
