@@ -15,8 +15,8 @@ namespace {
 struct FarFromOrigin : test::Cli {};
 
 TEST_F(FarFromOrigin, RoomMovedByAMillionMetresSolvesWithTheSameEnergies) {
-  const std::string dir = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
-  std::ifstream in(dir + "room.obj");
+  const std::string examples = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
+  std::ifstream in(examples + "room.obj");
   std::stringstream moved;
   std::string line;
   while (std::getline(in, line)) {
@@ -28,13 +28,13 @@ TEST_F(FarFromOrigin, RoomMovedByAMillionMetresSolvesWithTheSameEnergies) {
       std::snprintf(buf, sizeof buf, "v %.10f %.10f %.10f", x + 1e6, y, z - 2e6);
       moved << buf << '\n';
     } else if (line.rfind("mtllib ", 0) == 0) {
-      moved << "mtllib " << dir << line.substr(7) << '\n';
+      moved << "mtllib " << examples << line.substr(7) << '\n';
     } else {
       moved << line << '\n';
     }
   }
   const std::string far = write("room_far.obj", moved.str());
-  const auto a = test::run("solve " + dir + "room.obj -o " + path("a.vtu") + " --stats " + path("a.json") + " --quiet");
+  const auto a = test::run("solve " + examples + "room.obj -o " + path("a.vtu") + " --stats " + path("a.json") + " --quiet");
   const auto b = test::run("solve " + far + " -o " + path("b.vtu") + " --stats " + path("b.json") + " --quiet");
   ASSERT_EQ(a.status, 0) << a.output;
   ASSERT_EQ(b.status, 0) << b.output;

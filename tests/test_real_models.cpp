@@ -451,7 +451,7 @@ PanelRoom panel_room(const Vec3& offset) {
   add("wall", quad({0, 0, 0}, {X, 0, 0}, {X, H, 0}, {0, H, 0}));     // z = 0, +z
   add("wall", quad({0, 0, Z}, {0, H, Z}, {X, H, Z}, {X, 0, Z}));     // z = Z, -z
   for (const auto& f : shapes::box(Vec3(2, 0, 0), Vec3(2.2, H, Z), 1, false)) add("partition", f);
-  for (const auto [x0, x1] : {std::pair{0.0, 2.0}, std::pair{2.2, X}})  // facing -y
+  for (const auto& [x0, x1] : {std::pair{0.0, 2.0}, std::pair{2.2, X}})  // facing -y
     add("panel", quad({x0 + m, h, m}, {x1 - m, h, m}, {x1 - m, h, Z - m}, {x0 + m, h, Z - m}));
   add("counter", quad({3.4, 0, 0}, {3.4, 0, 1.5}, {3.4, 0.9, 1.5}, {3.4, 0.9, 0}));      // front, -x
   add("counter", quad({3.4, 0.9, 0}, {3.4, 0.9, 1.5}, {X, 0.9, 1.5}, {X, 0.9, 0}));      // top, +y
