@@ -2,6 +2,7 @@
 #include "lambert/daylight/daylight.hpp"
 
 #include <boost/polygon/polygon.hpp>
+#include <polyclipping/clipper.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -10,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 
 #include "lambert/formfactor/kernel.hpp"
 #include "clip.hpp"
@@ -65,19 +67,91 @@ struct Merged {
   std::vector<int> group;                   // polygon -> plane group
   std::vector<int> patch_group;             // patch -> plane group
   int groups = 0;
+  // A bounding volume hierarchy over the polygons (boxes in double; leaves of a few polygons), so that a point
+  // visits only the polygons in the part of its hemicube that is still open, nearest first.
+  struct Node {
+    Vec3 lo, hi;
+    int first = 0, count = 0;  // leaf: items [first, first + count); inner: count 0, children first and first + 1
+  };
+  std::vector<Node> nodes;
+  std::vector<int> items;  // polygon indices in leaf order
+
+  void build_tree() {
+    const int m = int(polygons.size());
+    items.resize(size_t(m));
+    std::vector<Vec3> lo(static_cast<size_t>(m)), hi(static_cast<size_t>(m)), centre(static_cast<size_t>(m));
+    for (int j = 0; j < m; ++j) {
+      items[size_t(j)] = j;
+      lo[size_t(j)] = hi[size_t(j)] = polygons[size_t(j)][0];
+      for (const Vec3& v : polygons[size_t(j)]) {
+        lo[size_t(j)] = lo[size_t(j)].cwiseMin(v);
+        hi[size_t(j)] = hi[size_t(j)].cwiseMax(v);
+      }
+      centre[size_t(j)] = 0.5 * (lo[size_t(j)] + hi[size_t(j)]);
+    }
+    nodes.clear();
+    if (m == 0) return;
+    nodes.reserve(size_t(2 * m));
+    // Median split of the centres along the box's widest axis; children stored side by side.
+    struct Task {
+      int node, begin, end;
+    };
+    std::vector<Task> todo{{0, 0, m}};
+    nodes.emplace_back();
+    while (!todo.empty()) {
+      const Task t = todo.back();
+      todo.pop_back();
+      Node nd;
+      nd.lo = lo[size_t(items[size_t(t.begin)])];
+      nd.hi = hi[size_t(items[size_t(t.begin)])];
+      Vec3 clo = centre[size_t(items[size_t(t.begin)])], chi = clo;
+      for (int k = t.begin; k < t.end; ++k) {
+        const int j = items[size_t(k)];
+        nd.lo = nd.lo.cwiseMin(lo[size_t(j)]);
+        nd.hi = nd.hi.cwiseMax(hi[size_t(j)]);
+        clo = clo.cwiseMin(centre[size_t(j)]);
+        chi = chi.cwiseMax(centre[size_t(j)]);
+      }
+      int axis = 0;
+      (chi - clo).maxCoeff(&axis);
+      if (t.end - t.begin <= 4 || !(chi[axis] > clo[axis])) {
+        nd.first = t.begin;
+        nd.count = t.end - t.begin;
+        nodes[size_t(t.node)] = nd;
+        continue;
+      }
+      const int mid = (t.begin + t.end) / 2;
+      std::nth_element(items.begin() + t.begin, items.begin() + mid, items.begin() + t.end,
+                       [&](int a, int b) { return centre[size_t(a)][axis] < centre[size_t(b)][axis]; });
+      nd.first = int(nodes.size());
+      nd.count = 0;
+      nodes[size_t(t.node)] = nd;
+      nodes.emplace_back();
+      nodes.emplace_back();
+      todo.push_back({nd.first, t.begin, mid});
+      todo.push_back({nd.first + 1, mid, t.end});
+    }
+  }
 };
 
-Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& up,
-                     const std::vector<char>& skip_group, const std::vector<char>& first_group) {
+constexpr int kBatch = 32;  // polygons subtracted from the open region at a time
+
+// skip_group: the plane group left out (the point's own plane), or -1. first_group: null, or per group whether it is
+// likely visible from x (a hint: those are united and subtracted first, all at once).
+Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& up, int skip_group,
+                     const std::vector<char>* first_group) {
   const Vec3 t1 = n.unitOrthogonal(), t2 = n.cross(t1);
   const CubeFace faces[5] = {{n, t1, t2, -1}, {t1, t2, n, 0}, {-t1, t2, n, 0}, {t2, t1, n, 0}, {-t2, t1, n, 0}};
   thread_local std::vector<Vec3> rel, a, b;
-  thread_local std::vector<bp::point_data<int>> pts;
-  using namespace bp::operators;
+  thread_local ClipperLib::Path pts;
+  thread_local ClipperLib::Paths covered, sky, next;
+  thread_local ClipperLib::Clipper clipper;
+  thread_local std::vector<int> stack;
   Moments open;
   for (const CubeFace& F : faces) {
     const Vec3 planes[4] = {F.f - F.ea, F.f + F.ea, F.f - F.eb, F.b0 < 0 ? Vec3(F.f + F.eb) : F.eb};
-    // Projects patch j onto this face into pts; false if it misses the face.
+    // Projects polygon j onto this face into pts (counter-clockwise: the union below counts any covered point
+    // once, whichever side of the patch x sees); false if it misses the face.
     auto project = [&](int j) {
       const auto& poly = M.polygons[size_t(j)];
       rel.resize(poly.size());
@@ -94,46 +168,122 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
         const double w = F.f.dot(p);
         if (!(w > 0)) continue;  // the apex itself (x on the patch's boundary)
         const double u = std::clamp(F.ea.dot(p) / w, -1.0, 1.0), v = std::clamp(F.eb.dot(p) / w, F.b0, 1.0);
-        pts.emplace_back(int(std::lround(u * kGridScale)), int(std::lround(v * kGridScale)));
+        pts.emplace_back(ClipperLib::cInt(std::lround(u * kGridScale)), ClipperLib::cInt(std::lround(v * kGridScale)));
       }
-      return pts.size() >= 3;
+      if (pts.size() < 3) return false;
+      if (!ClipperLib::Orientation(pts)) ClipperLib::ReversePath(pts);
+      return true;
     };
-    bp::polygon_set_data<int> sky, covered;
-    sky.insert(bp::rectangle_data<int>(-int(kGridScale), int(F.b0 * kGridScale), int(kGridScale), int(kGridScale)));
-    for (int pass = 0; pass < 2; ++pass) {
-      bp::rectangle_data<int> box;
-      if (pass == 1) {
-        if (sky.empty()) break;  // the likely-visible patches cover this face
-        sky.extents(box);
-      }
-      covered.clear();
-      for (int j = 0; j < int(M.polygons.size()); ++j) {
-        const size_t grp = size_t(M.group[size_t(j)]);
-        if (skip_group[grp] || (first_group[grp] != 0) != (pass == 0)) continue;
-        if (!project(j)) continue;
-        if (pass == 1) {
-          int lo_u = INT32_MAX, hi_u = INT32_MIN, lo_v = INT32_MAX, hi_v = INT32_MIN;
-          for (const auto& q : pts) {
-            lo_u = std::min(lo_u, bp::x(q));
-            hi_u = std::max(hi_u, bp::x(q));
-            lo_v = std::min(lo_v, bp::y(q));
-            hi_v = std::max(hi_v, bp::y(q));
-          }
-          if (hi_u <= bp::xl(box) || lo_u >= bp::xh(box) || hi_v <= bp::yl(box) || lo_v >= bp::yh(box)) continue;
+    const ClipperLib::cInt S = ClipperLib::cInt(kGridScale), v0 = ClipperLib::cInt(F.b0 * kGridScale);
+    sky.assign(1, ClipperLib::Path{{-S, v0}, {S, v0}, {S, S}, {-S, S}});
+    // The bounding box of what is still open (grid units), and the planes through x bounding the directions in it.
+    ClipperLib::cInt lo_u = -S, hi_u = S, lo_v = v0, hi_v = S;
+    Vec3 cone[4];
+    auto update_bounds = [&] {
+      lo_u = lo_v = std::numeric_limits<ClipperLib::cInt>::max();
+      hi_u = hi_v = std::numeric_limits<ClipperLib::cInt>::min();
+      for (const auto& path : sky)
+        for (const auto& q : path) {
+          lo_u = std::min(lo_u, q.X);
+          hi_u = std::max(hi_u, q.X);
+          lo_v = std::min(lo_v, q.Y);
+          hi_v = std::max(hi_v, q.Y);
         }
-        bp::polygon_data<int> pd;
-        pd.set(pts.begin(), pts.end());
-        covered.insert(pd);
+      // One grid unit wider than the box: rounding cannot drop a polygon reaching into it.
+      const double u0 = double(lo_u - 1) / kGridScale, u1 = double(hi_u + 1) / kGridScale;
+      const double w0 = double(lo_v - 1) / kGridScale, w1 = double(hi_v + 1) / kGridScale;
+      cone[0] = F.ea - u0 * F.f;  // d . cone[k] >= 0 for every direction d in the box (F.f . d > 0)
+      cone[1] = u1 * F.f - F.ea;
+      cone[2] = F.eb - w0 * F.f;
+      cone[3] = w1 * F.f - F.eb;
+    };
+    auto subtract = [&] {
+      if (covered.empty()) return;
+      clipper.Clear();
+      clipper.AddPaths(sky, ClipperLib::ptSubject, true);
+      clipper.AddPaths(covered, ClipperLib::ptClip, true);
+      next.clear();
+      clipper.Execute(ClipperLib::ctDifference, next, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+      std::swap(sky, next);
+      covered.clear();
+      if (!sky.empty()) update_bounds();
+    };
+    auto in_box = [&] {  // pts' bounding box meets the open region's
+      ClipperLib::cInt plo_u = pts[0].X, phi_u = plo_u, plo_v = pts[0].Y, phi_v = plo_v;
+      for (const auto& q : pts) {
+        plo_u = std::min(plo_u, q.X);
+        phi_u = std::max(phi_u, q.X);
+        plo_v = std::min(plo_v, q.Y);
+        phi_v = std::max(phi_v, q.Y);
       }
-      sky -= covered;
+      return !(phi_u <= lo_u || plo_u >= hi_u || phi_v <= lo_v || plo_v >= hi_v);
+    };
+    auto skipped = [&](int j, bool hinted_pass) {
+      const int grp = M.group[size_t(j)];
+      if (grp == skip_group) return true;
+      const bool first = first_group && (*first_group)[size_t(grp)] != 0;
+      return first != hinted_pass;
+    };
+    covered.clear();
+    // The likely-visible polygons first, all at once (they cover most of a room's hemicube).
+    if (first_group) {
+      for (int j = 0; j < int(M.polygons.size()); ++j)
+        if (!skipped(j, true) && project(j)) covered.push_back(pts);
+      subtract();
     }
-    std::vector<bp::polygon_data<int>> out;  // outer boundaries with holes keyholed in: signed areas add up
-    sky.get(out);
-    for (const auto& pd : out) {
+    if (sky.empty()) continue;
+    update_bounds();
+    // Then the others, nearest first, from the tree: a subtree whose box lies wholly outside the open region's
+    // cone of directions (or behind the face) is not visited; kBatch polygons are subtracted at a time, after which
+    // the open region and its cone shrink.
+    auto outside = [&](const Merged::Node& nd) {
+      auto reaches = [&](const Vec3& m) {  // max over the box of m . (corner - x) >= 0
+        double s = 0;
+        for (int k = 0; k < 3; ++k) s += std::max(m[k] * (nd.lo[k] - x[k]), m[k] * (nd.hi[k] - x[k]));
+        return s >= 0;
+      };
+      if (!reaches(F.f)) return true;
+      for (const Vec3& m : cone)
+        if (!reaches(m)) return true;
+      return false;
+    };
+    auto distance2 = [&](const Merged::Node& nd) { return (x.cwiseMax(nd.lo).cwiseMin(nd.hi) - x).squaredNorm(); };
+    stack.clear();
+    if (!M.nodes.empty()) stack.push_back(0);
+    while (!stack.empty() && !sky.empty()) {
+      const Merged::Node& nd = M.nodes[size_t(stack.back())];
+      stack.pop_back();
+      if (outside(nd)) continue;
+      if (nd.count > 0) {
+        for (int k = nd.first; k < nd.first + nd.count; ++k) {
+          const int j = M.items[size_t(k)];
+          if (skipped(j, false) || !project(j) || !in_box()) continue;
+          covered.push_back(pts);
+          if (int(covered.size()) >= kBatch) subtract();
+        }
+        continue;
+      }
+      const int l = nd.first, r = nd.first + 1;
+      const bool left_nearer = distance2(M.nodes[size_t(l)]) <= distance2(M.nodes[size_t(r)]);
+      stack.push_back(left_nearer ? r : l);  // the nearer is popped first
+      stack.push_back(left_nearer ? l : r);
+    }
+    subtract();
+    // What is left open: outer boundaries counter-clockwise, holes clockwise (Clipper's output). polygon_moments
+    // integrates a polygon's cone whatever its orientation, so holes are subtracted.
+    for (const auto& path : sky) {
+      if (path.size() < 3) continue;
       rel.clear();
-      for (auto it = pd.begin(); it != pd.end(); ++it)
-        rel.push_back(x + F.f + (double(bp::x(*it)) / kGridScale) * F.ea + (double(bp::y(*it)) / kGridScale) * F.eb);
-      if (rel.size() >= 3) open += polygon_moments(x, n, up, rel);
+      for (const auto& q : path)
+        rel.push_back(x + F.f + (double(q.X) / kGridScale) * F.ea + (double(q.Y) / kGridScale) * F.eb);
+      const Moments m = polygon_moments(x, n, up, rel);
+      if (ClipperLib::Orientation(path)) {
+        open += m;
+      } else {
+        open.cos_above -= m.cos_above;
+        open.cos_up_above -= m.cos_up_above;
+        open.cos_below -= m.cos_below;
+      }
     }
   }
   return open;
@@ -211,11 +361,10 @@ struct Gatherer::Impl {
     }
   }
 
-  // Plane groups to skip (the group of `ignore`) and to take first (any member likely visible).
-  void group_flags(int ignore, const std::vector<char>& likely, std::vector<char>& skip, std::vector<char>& first) const {
-    skip.assign(size_t(merged.groups), 0);
+  // The plane group to skip (that of `ignore`, or -1), and per group whether any member is likely visible.
+  int skip_group(int ignore) const { return ignore >= 0 ? merged.patch_group[size_t(ignore)] : -1; }
+  void first_flags(const std::vector<char>& likely, std::vector<char>& first) const {
     first.assign(size_t(merged.groups), 0);
-    if (ignore >= 0) skip[size_t(merged.patch_group[size_t(ignore)])] = 1;
     for (int j = 0; j < g.size(); ++j)
       if (likely[size_t(j)]) first[size_t(merged.patch_group[size_t(j)])] = 1;
   }
@@ -234,6 +383,7 @@ struct Gatherer::Impl {
     }
     occluders = !formfactor::potential_occluders(g).empty();
     merge_planes(diag);
+    merged.build_tree();
     vis = formfactor::make_embree_visibility(g);
   }
 
@@ -309,9 +459,9 @@ Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, 
     }
   }
   if (rays) {
-    thread_local std::vector<char> skip_group, first_group;
-    I.group_flags(ignore, first, skip_group, first_group);
-    r.open = open_moments(I.merged, x, n, up, skip_group, first_group);
+    thread_local std::vector<char> first_group;
+    I.first_flags(first, first_group);
+    r.open = open_moments(I.merged, x, n, up, I.skip_group(ignore), &first_group);
     r.clipped = true;
   } else {
     const Moments h = hemisphere_moments(n, up);
@@ -325,9 +475,10 @@ Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, 
 Moments Gatherer::open(const Vec3& x, const Vec3& n, const Vec3& up, int ignore,
                        const std::vector<char>& likely_visible) const {
   const Impl& I = *impl_;
-  thread_local std::vector<char> skip_group, first_group;
-  I.group_flags(ignore, likely_visible, skip_group, first_group);
-  return open_moments(I.merged, x, n, up, skip_group, first_group);
+  if (likely_visible.empty()) return open_moments(I.merged, x, n, up, I.skip_group(ignore), nullptr);
+  thread_local std::vector<char> first_group;
+  I.first_flags(likely_visible, first_group);
+  return open_moments(I.merged, x, n, up, I.skip_group(ignore), &first_group);
 }
 
 const mesh::PatchGeometry& Gatherer::geometry() const { return impl_->g; }
@@ -342,7 +493,8 @@ std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sk
   std::vector<double> E(size_t(N), 0.0);
   std::atomic<long long> points{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, N, 1), [&](const tbb::blocked_range<int>& range) {
-    std::vector<char> likely(static_cast<size_t>(N), 0);
+    std::vector<char> likely;  // empty: no hint
+    if (likely_visible) likely.assign(static_cast<size_t>(N), 0);
     for (int i = range.begin(); i < range.end(); ++i) {
       if (likely_visible) likely_visible(i, likely);
       E[size_t(i)] = irradiance(sky, gather.open(g.centroid[i], g.normal[i], sky.up, i, likely));

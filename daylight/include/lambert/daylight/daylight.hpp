@@ -44,7 +44,9 @@ class Gatherer {
   Result gather(const Vec3& x, const Vec3& n, const Vec3& up, const ColorField* radiance, int ignore) const;
   long long rays_cast() const;
   // The open directions' moments at x (exact clipping, as in gather()); likely_visible[j] != 0 marks patches x
-  // probably sees (e.g. F_ij > 0): a hint that speeds the clipping up, never changes the result.
+  // probably sees (e.g. F_ij > 0): a hint that speeds the clipping up in rooms (the result moves by rounding on the
+  // clipping's grid only, ~1e-9). Empty: no hint (the patches are then visited nearest first through a tree, only
+  // where the hemicube is still open).
   Moments open(const Vec3& x, const Vec3& n, const Vec3& up, int ignore, const std::vector<char>& likely_visible) const;
   const mesh::PatchGeometry& geometry() const;
 
