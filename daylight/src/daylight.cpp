@@ -134,6 +134,7 @@ struct Merged {
   }
 };
 
+constexpr double kCrack = 4;  // grid units (2^-28 of a hemicube face's half-width)
 constexpr int kBatch = 32;  // polygons subtracted from the open region at a time
 
 // skip_group: the plane group left out (the point's own plane), or -1. first_group: null, or per group whether it is
@@ -204,7 +205,18 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
       clipper.AddPaths(covered, ClipperLib::ptClip, true);
       next.clear();
       clipper.Execute(ClipperLib::ctDifference, next, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
-      std::swap(sky, next);
+      // Cracks dropped: pieces (or holes) narrower on average (2 area / perimeter) than kCrack grid units are
+      // where the patches' rounded corners meet (seams between walls, floor and ceiling), not open sky; left in,
+      // they kept every room's hemicube open and its whole cone visited.
+      sky.clear();
+      for (auto& path : next) {
+        double perimeter = 0;
+        for (size_t k = 0; k < path.size(); ++k) {
+          const auto &p = path[k], &q = path[(k + 1) % path.size()];
+          perimeter += std::hypot(double(q.X - p.X), double(q.Y - p.Y));
+        }
+        if (2 * std::abs(ClipperLib::Area(path)) >= kCrack * perimeter) sky.push_back(std::move(path));
+      }
       covered.clear();
       if (!sky.empty()) update_bounds();
     };
