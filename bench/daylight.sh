@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Daylight timings (docs/benchmarks.md, "Daylight"): the floor plan with its windows opened to the sky and ~530
-# work-plane sensors, and the glazed window room at several refinements. Usage: bash bench/daylight.sh [BUILD]
+# work-plane sensors, the glazed window room at several refinements, and the public urban model under an overcast
+# sky with both operators (if ../shared/models is there). Usage: bash bench/daylight.sh [BUILD]
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 build="${1:-$here/build}"
@@ -18,3 +19,10 @@ for e in 0 1.0 0.5 0.25; do
     -o "$out/r$e.vtu" --sky cie-overcast --units photometric --sensors "$out/s.csv" --sensors-out "$out/r$e.csv" \
     --max-edge "$e" 2>&1 | grep -E "patches  |daylight factor|wall"
 done
+udales="$here/../shared/models/udales_shape.obj"
+if [ -f "$udales" ]; then
+  for op in hierarchical dense; do
+    /usr/bin/time -f "udales $op: wall %e s, max RSS %M kB" "$build/lambert" solve "$udales" -o "$out/u_$op.vtu" \
+      --sky cie-overcast --up z --operator "$op" 2>&1 | grep -E "phases|wall"
+  done
+fi

@@ -145,7 +145,8 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
   const CubeFace faces[5] = {{n, t1, t2, -1}, {t1, t2, n, 0}, {-t1, t2, n, 0}, {t2, t1, n, 0}, {-t2, t1, n, 0}};
   thread_local std::vector<Vec3> rel, a, b;
   thread_local ClipperLib::Path pts;
-  thread_local ClipperLib::Paths covered, sky, next;
+  thread_local ClipperLib::Paths covered, sky;
+  thread_local ClipperLib::PolyTree tree;
   thread_local ClipperLib::Clipper clipper;
   thread_local std::vector<int> stack;
   Moments open;
@@ -203,20 +204,27 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
       clipper.Clear();
       clipper.AddPaths(sky, ClipperLib::ptSubject, true);
       clipper.AddPaths(covered, ClipperLib::ptClip, true);
-      next.clear();
-      clipper.Execute(ClipperLib::ctDifference, next, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
-      // Cracks dropped: pieces (or holes) narrower on average (2 area / perimeter) than kCrack grid units are
-      // where the patches' rounded corners meet (seams between walls, floor and ceiling), not open sky; left in,
-      // they kept every room's hemicube open and its whole cone visited.
+      clipper.Execute(ClipperLib::ctDifference, tree, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+      // Seams dropped: an open piece narrower on average (2 area / perimeter) than kCrack grid units is where the
+      // patches' rounded corners meet (walls, floor and ceiling), not open sky; left in, the seams kept every
+      // room's hemicube open and its whole cone visited. Such a piece goes with the holes inside it; a hole (what
+      // is covered) is never dropped, however thin.
       sky.clear();
-      for (auto& path : next) {
+      auto keep = [&](auto&& self, const ClipperLib::PolyNode* outer) -> void {
+        const ClipperLib::Path& path = outer->Contour;
         double perimeter = 0;
         for (size_t k = 0; k < path.size(); ++k) {
           const auto &p = path[k], &q = path[(k + 1) % path.size()];
           perimeter += std::hypot(double(q.X - p.X), double(q.Y - p.Y));
         }
-        if (2 * std::abs(ClipperLib::Area(path)) >= kCrack * perimeter) sky.push_back(std::move(path));
-      }
+        if (2 * std::abs(ClipperLib::Area(path)) < kCrack * perimeter) return;
+        sky.push_back(path);
+        for (const ClipperLib::PolyNode* hole : outer->Childs) {
+          sky.push_back(hole->Contour);
+          for (const ClipperLib::PolyNode* island : hole->Childs) self(self, island);
+        }
+      };
+      for (const ClipperLib::PolyNode* outer : tree.Childs) keep(keep, outer);
       covered.clear();
       if (!sky.empty()) update_bounds();
     };
@@ -243,6 +251,7 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
         if (!skipped(j, true) && project(j)) covered.push_back(pts);
       subtract();
     }
+
     if (sky.empty()) continue;
     update_bounds();
     // Then the others, nearest first, from the tree: a subtree whose box lies wholly outside the open region's
