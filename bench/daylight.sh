@@ -16,7 +16,7 @@ echo "nproc $(nproc); $(grep -m1 'model name' /proc/cpuinfo)"
 awk -F, 'NR == 1 {print "x,y,z,nx,ny,nz"} NR > 1 && NR % 4 == 2 {print $1 "," $2 "," $3 ",0,1,0"}' "$out/grid.csv" > "$out/s.csv"
 for e in 0 1.0 0.5 0.25; do
   /usr/bin/time -f "max-edge $e: wall %e s" "$build/lambert" solve "$here/examples/window_room_daylight.obj" \
-    -o "$out/r$e.vtu" --sky cie-overcast --units photometric --sensors "$out/s.csv" --sensors-out "$out/r$e.csv" \
+    -o "$out/m$e.vtu" --sky cie-overcast --units photometric --sensors "$out/s.csv" --sensors-out "$out/r$e.csv" \
     --max-edge "$e" 2>&1 | grep -E "patches  |daylight factor|wall"
 done
 udales="$here/../shared/models/udales_shape.obj"
