@@ -226,11 +226,11 @@ std::string DaylightRun::summary() const {
   const char* lux = photometric_ ? "lx" : "W m^-2";
   if (has_sky_) {
     s += fmt::format("  daylight     {} sky, {} {:.5g} {}, horizontal {:.5g} {}, ground reflectance {:g}, up {}; "
-                     "sky on {} patches, {} glazing patches ({:.3g} s)\n",
+                     "sky on {} patches ({} inside closed surfaces: none), {} glazing patches ({:.3g} s)\n",
                      sky_.name(), sky_.kind == daylight::Sky::Kind::Uniform ? "L" : "Lz", sky_.radiance * scale(),
                      photometric_ ? "cd m^-2" : "W m^-2 sr^-1", sky_.horizontal_irradiance() * scale(), lux,
-                     sky_.ground_reflectance, o_.up, patch_stats_.patches_lit, patch_stats_.glazing_patches,
-                     sky_seconds_);
+                     sky_.ground_reflectance, o_.up, patch_stats_.patches_lit, patch_stats_.enclosed,
+                     patch_stats_.glazing_patches, sky_seconds_);
     if (patch_stats_.negative_set_to_zero > 0)
       s += fmt::format("  note         {} patches had a negative sky irradiance from round-off (most negative {:.3g} {}), "
                        "set to 0\n",
@@ -284,6 +284,7 @@ nlohmann::json DaylightRun::stats() const {
                 {"ground_reflectance", sky_.ground_reflectance},
                 {"patches_lit", patch_stats_.patches_lit},
                 {"glazing_patches", patch_stats_.glazing_patches},
+                {"patches_enclosed", patch_stats_.enclosed},
                 {"points_clipped", patch_stats_.points},
                 {"negative_set_to_zero", patch_stats_.negative_set_to_zero},
                 {"most_negative", patch_stats_.most_negative * scale()},

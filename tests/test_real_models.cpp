@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <numbers>
 #include <set>
 #include <string>
 #include <vector>
@@ -24,6 +25,7 @@
 
 #include "lambert/daylight/daylight.hpp"
 #include "lambert/formfactor/assemble.hpp"
+#include "lambert/formfactor/kernel.hpp"
 #include "lambert/io/vtk.hpp"
 #include "lambert/io/readers.hpp"
 #include "lambert/mesh/prepare.hpp"
@@ -261,6 +263,42 @@ PolygonSoup two_rooms_with_partition(double lamp_a, double lamp_b, bool two_side
   for (int q = 0; q < 4; ++q) s.faces[20 + 4 * 2 + q].material = lamp_mat_b;  // B's +y: its 3rd kept side
   s.faces.back().material = wall;
   return s;
+}
+
+// A closed room next to a room open at the top, under a uniform sky (ground of the same radiance): the closed room's
+// 24 patches face the inside of a closed surface, so their sky is 0 exactly and none of them is clipped (the sky
+// phase counts them); the open room's floor quads get pi L F(centroid -> opening), the point-to-polygon closed
+// form, within 1e-7. Without the enclosure test every patch is clipped (points = 44).
+TEST(RealModelsDaylight, ClosedRoomGetsNoSkyAndIsNotClipped) {
+  shapes::Polygons polys = shapes::box(Vec3(0, 0, 0), Vec3(1, 1, 1), 2, true);
+  shapes::Polygons open = shapes::box(Vec3(2, 0, 0), Vec3(3, 1, 1), 2, true);
+  open.erase(open.begin() + 12, open.begin() + 16);  // +y (the ceiling): open to the sky
+  const size_t closed_patches = polys.size();
+  polys.insert(polys.end(), open.begin(), open.end());
+  PrepareOptions keep_winding;  // the closed room has no light: the visibility rule would turn it into a solid block
+  keep_winding.orient = Orientation::file;
+  const Scene scene = prepare_and_build(soup_from(polys), keep_winding);
+  ASSERT_EQ(scene.geometry.size(), int(polys.size()));
+  daylight::Sky sky;
+  sky.kind = daylight::Sky::Kind::Uniform;
+  sky.radiance = 3;
+  sky.ground_reflectance = 1;
+  const daylight::Gatherer gather(scene.geometry, 16);
+  daylight::PatchSkyStats st;
+  const std::vector<double> E = daylight::patch_sky_irradiance(scene, sky, gather, &st);
+  const std::vector<Vec3> opening{Vec3(2, 1, 0), Vec3(3, 1, 0), Vec3(3, 1, 1), Vec3(2, 1, 1)};
+  int floors = 0;
+  for (int p = 0; p < scene.geometry.size(); ++p) {
+    const Vec3& c = scene.geometry.centroid[p];
+    if (c.x() < 1.5) {
+      EXPECT_EQ(E[size_t(p)], 0.0) << "closed room's patch " << p << " at " << c.transpose();
+    } else if (c.y() == 0) {
+      const double want = std::numbers::pi * sky.radiance * formfactor::point_to_polygon(c, scene.geometry.normal[p], opening);
+      EXPECT_NEAR(E[size_t(p)], want, 1e-7 * want) << "open room's floor patch " << p << " at " << c.transpose();
+      ++floors;
+    }
+  }
+  EXPECT_EQ(floors, 4);
 }
 
 // The open sky on udales_shape.obj (buildings on a ground plane, z up) at every 16th patch's centroid: found nearest

@@ -512,19 +512,29 @@ std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sk
   const int N = g.size();
   LAMBERT_CHECK(&gather.geometry() == &g, "patch_sky_irradiance: the Gatherer is not over this scene's geometry");
   std::vector<double> E(size_t(N), 0.0);
-  std::atomic<long long> points{0};
+  std::atomic<long long> points{0}, done{0};
+  // A patch whose front lies inside a closed surface (a shut room; a room of a glazed building: the panes close it)
+  // sees nothing at infinity: its sky is 0, exactly, without clipping. The clipping alone would leave the grid's
+  // seams (~1e-8) and, for a non-convex patch whose centroid lies off the patch (an L-shaped floor piece around
+  // furniture), measure from a point that may see out through hidden space.
+  const std::vector<char> enclosed = formfactor::enclosed_patches(g);
   tbb::parallel_for(tbb::blocked_range<int>(0, N, 1), [&](const tbb::blocked_range<int>& range) {
     std::vector<char> likely;  // empty: no hint
     if (likely_visible) likely.assign(static_cast<size_t>(N), 0);
     for (int i = range.begin(); i < range.end(); ++i) {
+      if (enclosed[size_t(i)]) {
+        if (progress) progress(double(++done) / double(N));
+        continue;
+      }
+      ++points;
       if (likely_visible) likely_visible(i, likely);
       E[size_t(i)] = irradiance(sky, gather.open(g.centroid[i], g.normal[i], sky.up, i, likely));
-      const long long done = ++points;
-      if (progress) progress(double(done) / double(N));
+      if (progress) progress(double(++done) / double(N));
     }
   });
   PatchSkyStats st;
   st.points = points.load();
+  for (char e : enclosed) st.enclosed += e;
   for (int i = 0; i < N; ++i) {
     double& e = E[size_t(i)];
     if (e < 0) {  // round-off of the clipping where (almost) no sky is seen: counted, set to 0

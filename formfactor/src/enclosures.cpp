@@ -1,6 +1,8 @@
 // Closed surfaces and the cells they split space into (enclosures.hpp).
 #include "enclosures.hpp"
 
+#include "lambert/formfactor/visibility.hpp"
+
 #include <embree3/rtcore.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -543,3 +545,18 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g) {
 }
 
 }  // namespace lambert::formfactor::detail
+
+namespace lambert::formfactor {
+
+std::vector<char> enclosed_patches(const mesh::PatchGeometry& geometry) {
+  const detail::Enclosures e = detail::find_enclosures(geometry);
+  std::vector<char> out(size_t(geometry.size()), 0);
+  if (e.cell.size() != out.size()) return out;
+  for (int p = 0; p < geometry.size(); ++p) {
+    const int c = e.cell[size_t(p)];
+    out[size_t(p)] = c >= 0 && size_t(c) < e.cell_surfaces.size() && !e.cell_surfaces[size_t(c)].empty();
+  }
+  return out;
+}
+
+}  // namespace lambert::formfactor

@@ -61,11 +61,13 @@ struct PatchSkyStats {
   int negative_set_to_zero = 0; // patches whose E_sky came out < 0 (round-off of the clipping), set to 0
   double most_negative = 0;     // the most negative value before that (same unit as the sky's irradiance)
   int glazing_patches = 0;
+  int enclosed = 0;             // patches whose front lies inside a closed surface: no sky, nothing clipped
   double seconds = 0;
 };
 
 // Direct sky (and ground) irradiance on each patch, at its centroid: the sky and ground seen through the
-// directions in which the centroid sees no patch (exact clipping, Gatherer::open). likely_visible(i, flags), if
+// directions in which the centroid sees no patch (exact clipping, Gatherer::open); exactly 0, without clipping, for a
+// patch whose front lies inside a closed surface (formfactor::enclosed_patches). likely_visible(i, flags), if
 // given, sets flags[j] != 0 for the patches i probably sees (e.g. F_ij > 0 of an assembled operator): a hint that
 // makes the clipping ~3x faster on room scenes and never changes the result. Returns one value per patch.
 using VisibilityHint = std::function<void(int i, std::vector<char>& likely_visible)>;

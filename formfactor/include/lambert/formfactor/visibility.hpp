@@ -40,4 +40,10 @@ std::unique_ptr<Visibility> make_brute_force_visibility(const mesh::PatchGeometr
 // (closed box or sphere with inward normals). Uses the convex hull of all corners (CGAL).
 std::vector<int> potential_occluders(const mesh::PatchGeometry& geometry);
 
+// Per patch: 1 when the point just in front of it lies inside a closed surface of the scene (a shut room, an
+// apartment closed by its window panes), so that no direction from its front reaches infinity, whatever lies
+// between; 0 when it lies outside every closed surface or is not known (a patch crossing a surface). The closed
+// surfaces and cells of the enclosure test both operators use (src/enclosures.hpp); deterministic.
+std::vector<char> enclosed_patches(const mesh::PatchGeometry& geometry);
+
 }  // namespace lambert::formfactor
