@@ -226,7 +226,7 @@ std::string DaylightRun::summary() const {
   const char* lux = photometric_ ? "lx" : "W m^-2";
   if (has_sky_) {
     s += fmt::format("  daylight     {} sky, {} {:.5g} {}, horizontal {:.5g} {}, ground reflectance {:g}, up {}; "
-                     "sky on {} patches ({} inside closed surfaces: none), {} glazing patches ({:.3g} s)\n",
+                     "sky on {} patches ({} inside closed surfaces get none), {} glazing patches ({:.3g} s)\n",
                      sky_.name(), sky_.kind == daylight::Sky::Kind::Uniform ? "L" : "Lz", sky_.radiance * scale(),
                      photometric_ ? "cd m^-2" : "W m^-2 sr^-1", sky_.horizontal_irradiance() * scale(), lux,
                      sky_.ground_reflectance, o_.up, patch_stats_.patches_lit, patch_stats_.enclosed,
