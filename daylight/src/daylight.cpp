@@ -251,7 +251,6 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
         if (!skipped(j, true) && project(j)) covered.push_back(pts);
       subtract();
     }
-
     if (sky.empty()) continue;
     update_bounds();
     // Then the others, nearest first, from the tree: a subtree whose box lies wholly outside the open region's
