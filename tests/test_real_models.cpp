@@ -286,6 +286,8 @@ TEST(RealModelsDaylight, ClosedRoomGetsNoSkyAndIsNotClipped) {
   const daylight::Gatherer gather(scene.geometry, 16);
   daylight::PatchSkyStats st;
   const std::vector<double> E = daylight::patch_sky_irradiance(scene, sky, gather, &st);
+  EXPECT_EQ(st.enclosed, int(closed_patches));
+  EXPECT_EQ(st.points, (long long)(polys.size() - closed_patches));
   const std::vector<Vec3> opening{Vec3(2, 1, 0), Vec3(3, 1, 0), Vec3(3, 1, 1), Vec3(2, 1, 1)};
   int floors = 0;
   for (int p = 0; p < scene.geometry.size(); ++p) {
@@ -299,6 +301,51 @@ TEST(RealModelsDaylight, ClosedRoomGetsNoSkyAndIsNotClipped) {
     }
   }
   EXPECT_EQ(floors, 4);
+}
+
+// An open-top room whose floor is an L (arms 0.2 m wide) around a low solid block: the L's centroid (0.322, 0, 0.322)
+// lies off the patch, inside the block, where every direction is covered. The sky is evaluated at the centroid of
+// the patch's largest triangle instead (docs/physics.md section 9), which sees the opening over the block: under a
+// uniform sky it gets pi L F(point -> opening) within 1e-7 (the point-to-polygon closed form). Evaluated at the
+// centroid, it got ~0.
+TEST(RealModelsDaylight, NonConvexPatchTakesItsSkyFromAPointOnIt) {
+  shapes::Polygons polys = shapes::box(Vec3(0, 0, 0), Vec3(1, 1, 1), 1, true);
+  polys.erase(polys.begin() + 2, polys.begin() + 4);  // no floor (-y), no ceiling (+y): open to the sky
+  polys.push_back({Vec3(0, 0, 0), Vec3(0, 0, 1), Vec3(0.2, 0, 1), Vec3(0.2, 0, 0.2), Vec3(1, 0, 0.2), Vec3(1, 0, 0)});
+  const size_t floor_l = polys.size() - 1;
+  shapes::Polygons block = shapes::box(Vec3(0.2, 0, 0.2), Vec3(1, 0.05, 1), 1, false);
+  block.erase(block.begin() + 2);  // standing on the floor: no bottom
+  polys.insert(polys.end(), block.begin(), block.end());
+  PrepareOptions keep_winding;
+  keep_winding.orient = Orientation::file;
+  const Scene scene = prepare_and_build(soup_from(polys), keep_winding);
+  const mesh::PatchGeometry& g = scene.geometry;
+  int L = -1;
+  ASSERT_EQ(scene.face_id.size(), size_t(g.size()));
+  for (int p = 0; p < g.size(); ++p)
+    if (scene.face_id[size_t(p)] == int(floor_l)) L = p;
+  ASSERT_GE(L, 0) << "the L-shaped floor patch";
+  EXPECT_NEAR(g.centroid[L].x(), 0.29 / 0.9, 1e-9);  // (0.5 - 0.64 x 0.6) / 0.36
+  daylight::Sky sky;
+  sky.kind = daylight::Sky::Kind::Uniform;
+  sky.radiance = 2;
+  sky.ground_reflectance = 1;
+  const daylight::Gatherer gather(g, 16);
+  const std::vector<double> E = daylight::patch_sky_irradiance(scene, sky, gather, nullptr);
+  int largest = -1;
+  double area = 0;
+  for (int t = g.triangle_offsets[L]; t < g.triangle_offsets[L + 1]; ++t) {
+    const auto& T = g.triangles[t];
+    const double a = (g.points[T[1]] - g.points[T[0]]).cross(g.points[T[2]] - g.points[T[0]]).norm();
+    if (a > area) area = a, largest = t;
+  }
+  ASSERT_GE(largest, 0);
+  const auto& T = g.triangles[largest];
+  const Vec3 q = (g.points[T[0]] + g.points[T[1]] + g.points[T[2]]) / 3;
+  const std::vector<Vec3> opening{Vec3(0, 1, 0), Vec3(1, 1, 0), Vec3(1, 1, 1), Vec3(0, 1, 1)};
+  const double want = std::numbers::pi * sky.radiance * formfactor::point_to_polygon(q, Vec3::UnitY(), opening);
+  EXPECT_GT(want, 0.1);
+  EXPECT_NEAR(E[size_t(L)], want, 1e-7 * want) << "point " << q.transpose() << ", centroid " << g.centroid[L].transpose();
 }
 
 // The open sky on udales_shape.obj (buildings on a ground plane, z up) at every 16th patch's centroid: found nearest

@@ -503,6 +503,33 @@ Moments Gatherer::open(const Vec3& x, const Vec3& n, const Vec3& up, int ignore,
 
 const mesh::PatchGeometry& Gatherer::geometry() const { return impl_->g; }
 
+namespace {
+
+// Where a patch's sky is evaluated: its centroid when that lies on the patch, else (a non-convex patch, such as
+// an L-shaped floor piece left around furniture, whose centroid lies in the notch, possibly inside the furniture)
+// the centroid of its largest triangle.
+Vec3 sky_point(const mesh::PatchGeometry& g, int p) {
+  const Vec3& c = g.centroid[p];
+  int largest = -1;
+  double largest_area = -1;
+  for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
+    const Vec3 &A = g.points[g.triangles[t][0]], &B = g.points[g.triangles[t][1]], &C = g.points[g.triangles[t][2]];
+    const Vec3 nn = (B - A).cross(C - A);
+    const double twice = nn.norm();
+    if (!(twice > 0)) continue;
+    // Barycentric coordinates of c (in the patch's plane) from the signed areas of the sub-triangles.
+    const double u = (C - B).cross(c - B).dot(nn), v = (A - C).cross(c - C).dot(nn), w = (B - A).cross(c - A).dot(nn);
+    const double tol = -1e-9 * twice * twice;
+    if (u >= tol && v >= tol && w >= tol) return c;
+    if (twice > largest_area) largest_area = twice, largest = t;
+  }
+  if (largest < 0) return c;
+  const auto& T = g.triangles[largest];
+  return (g.points[T[0]] + g.points[T[1]] + g.points[T[2]]) / 3;
+}
+
+}  // namespace
+
 std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather,
                                          PatchSkyStats* stats, const VisibilityHint& likely_visible,
                                          const std::function<void(double)>& progress) {
@@ -527,7 +554,7 @@ std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sk
       }
       ++points;
       if (likely_visible) likely_visible(i, likely);
-      E[size_t(i)] = irradiance(sky, gather.open(g.centroid[i], g.normal[i], sky.up, i, likely));
+      E[size_t(i)] = irradiance(sky, gather.open(sky_point(g, i), g.normal[i], sky.up, i, likely));
       if (progress) progress(double(++done) / double(N));
     }
   });
