@@ -55,12 +55,6 @@ struct CubeFace {
   double b0;
 };
 
-// The open directions from x (no patch in them) by exact clipping: every patch's polygon projected onto the
-// hemicube faces, united per face, the face minus the union mapped back to directions and integrated.
-// skip[j]: patch j is left out (x's own plane, or outside x's hemisphere). first[j]: patch j is likely visible
-// from x (a hint only: it orders the work, never changes the result). The patches marked `first` are united
-// and subtracted first; the others are then projected and subtracted only where their bounding box meets
-// what is left open, which in a room is a small region (windows, doors) that few hidden patches reach.
 // The scene's patches merged per plane (coplanar patches united: far fewer, larger polygons to clip).
 struct Merged {
   std::vector<std::vector<Vec3>> polygons;  // keyholed where a union has holes
@@ -137,8 +131,11 @@ struct Merged {
 constexpr double kCrack = 4;  // grid units (2^-28 of a hemicube face's half-width)
 constexpr int kBatch = 32;  // polygons subtracted from the open region at a time
 
-// skip_group: the plane group left out (the point's own plane), or -1. first_group: null, or per group whether it is
-// likely visible from x (a hint: those are united and subtracted first, all at once).
+// The open directions from x (no patch in them) by exact clipping: the polygons projected onto the hemicube's
+// faces are subtracted from each face (Clipper, integer grid), and what is left is mapped back to directions and
+// integrated. skip_group: the plane group left out (the point's own plane), or -1. first_group: null, or per group
+// whether it is likely visible from x (a hint: those are subtracted first, all at once; the order changes the time
+// and the grid's rounding, ~1e-8, not the result).
 Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& up, int skip_group,
                      const std::vector<char>* first_group) {
   const Vec3 t1 = n.unitOrthogonal(), t2 = n.cross(t1);

@@ -25,9 +25,9 @@ inline double luminance_weighted(const RGB& c) { return kWeightR * c[0] + kWeigh
 // Point-to-patches gathering with visibility. The light from the patches uses the exact point-to-polygon kernel
 // times a visible fraction estimated with rays (formfactor's Visibility: Embree stays inside formfactor). The
 // open directions (what the sky term needs) are exact: when no patch can hide another from x, the hemisphere
-// minus the patches' moments; otherwise every patch is projected onto the faces of a hemicube around n, the
-// projections are united (Boost.Polygon, integer coordinates of 2^-28 of a face: a relative error ~1e-8), and
-// the moments of the uncovered region are integrated as polygons (docs/physics.md §9).
+// minus the patches' moments; otherwise the patches are projected onto the faces of a hemicube around n and
+// subtracted from them, nearest first through a tree (Clipper, integer coordinates of 2^-28 of a face: a relative
+// error ~1e-8), and the moments of the uncovered region are integrated as polygons (docs/physics.md §9).
 class Gatherer {
  public:
   // rays: visibility samples per (point, patch) pair that may be occluded (>= 1).
@@ -65,11 +65,12 @@ struct PatchSkyStats {
   double seconds = 0;
 };
 
-// Direct sky (and ground) irradiance on each patch, at its centroid: the sky and ground seen through the
-// directions in which the centroid sees no patch (exact clipping, Gatherer::open); exactly 0, without clipping, for a
-// patch whose front lies inside a closed surface (formfactor::enclosed_patches). likely_visible(i, flags), if
-// given, sets flags[j] != 0 for the patches i probably sees (e.g. F_ij > 0 of an assembled operator): a hint that
-// makes the clipping ~3x faster on room scenes and never changes the result. Returns one value per patch.
+// Direct sky (and ground) irradiance on each patch, at its centroid (at its largest triangle's centroid when the
+// centroid lies off a non-convex patch): the sky and ground seen through the directions in which that point sees
+// no patch (exact clipping, Gatherer::open); exactly 0, without clipping, for a patch whose front lies inside a
+// closed surface (formfactor::enclosed_patches). likely_visible(i, flags), if given, sets flags[j] != 0 for the
+// patches i probably sees (e.g. F_ij > 0 of an assembled operator): a hint that orders the clipping and changes
+// the result only by the grid's rounding (~1e-8). Returns one value per patch (W m^-2, as the sky's units).
 using VisibilityHint = std::function<void(int i, std::vector<char>& likely_visible)>;
 std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sky, const Gatherer& gather,
                                          PatchSkyStats* stats, const VisibilityHint& likely_visible = {},
