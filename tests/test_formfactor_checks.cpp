@@ -111,6 +111,40 @@ TEST(FormFactorChecks, RowSumCheckDetectsMissingVisibility) {
   EXPECT_GT(r.max_difference, 0.05);
 }
 
+// Rows that see little: every patch of a 16 x 16 ground grid sees only a small square 2 m above it (row sums
+// 0.0012-0.0016, exact: no occluder, unoccluded integrals to 1e-8), so 4,096 rays per patch expect 5-6.5 hits. Right
+// rows must pass: each of the 256 patches may draw a low count by chance, which is no evidence of a wrong row
+// (standard errors taken from the rays' own estimate alone rejected a row that drew 1 hit of 6.5 expected, 1 % of such
+// rows; the old rule fails here). Wrong rows must still fail: the same rows against the square shrunk to a third
+// (rows 9x too large), with 65,536 rays. Tolerance: the check's own 5 standard errors.
+TEST(FormFactorChecks, RowSumCheckHasNoFalseAlarmsOnRowsThatSeeLittle) {
+  auto scene = [](double a) {
+    shapes::Polygons p = shapes::grid({0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 16, 16);
+    const double c = 0.5, h = 2;
+    p.push_back({{c - a / 2, c - a / 2, h}, {c - a / 2, c + a / 2, h}, {c + a / 2, c + a / 2, h}, {c + a / 2, c - a / 2, h}});
+    return geometry(p);
+  };
+  const mesh::PatchGeometry g = scene(0.14);
+  ASSERT_EQ(g.size(), 257);
+  Stats st;
+  const auto F = assemble(g, {}, &st);
+  for (int i = 0; i < 256; ++i) {
+    ASSERT_GT(F.row_sum(i), 0.0011) << "row " << i;
+    ASSERT_LT(F.row_sum(i), 0.0017) << "row " << i;
+  }
+  RowSumCheckOptions co;
+  co.patches = 256;
+  co.rays_per_patch = 4096;
+  const RowSumCheck r = check_row_sums(g, F, &st, co);
+  EXPECT_TRUE(r.passed) << "patch " << r.worst_patch << " row sum " << r.worst_row_sum << " rays " << r.worst_estimate
+                        << " allowed " << r.worst_allowed << " (" << r.max_ratio << "x)";
+
+  const mesh::PatchGeometry small = scene(0.14 / 3);
+  co.rays_per_patch = 65536;
+  const RowSumCheck w = check_row_sums(small, F, &st, co);
+  EXPECT_FALSE(w.passed) << "max ratio " << w.max_ratio;
+}
+
 // The per-row bound covers the actual row-sum error of a closed convex scene (exact row sum 1, no rays), and
 // is 0-free: every row carries some bound. Tolerance: the bound itself.
 TEST(FormFactorChecks, RowErrorBoundCoversRowSumError) {
