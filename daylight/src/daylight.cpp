@@ -462,17 +462,24 @@ Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, 
   first.assign(size_t(g.size()), 0);
   for (int j = 0; j < g.size(); ++j) {
     if (j == ignore || (ignore >= 0 && I.coplanar(j, ignore))) continue;
-    const auto poly = g.polygon(j);
-    const Moments m = polygon_moments(x, n, up, poly);
-    if (!(m.cos_above + m.cos_below > 0)) continue;  // outside x's front hemisphere
     const bool lit = radiance && g.normal[j].dot(x) - I.offset[size_t(j)] > 0;
     if (rays && !lit) continue;  // only its coverage matters, and the clipping below takes it
-    const double V = rays ? I.visible_fraction(x, n, j, ignore) : 1.0;
-    first[size_t(j)] = V > 0;
-    if (!rays) covered += m;
-    if (lit && V > 0) {
+    const auto poly = g.polygon(j);
+    if (rays) {
+      // Its light only (the clipping takes its coverage): nothing unless part of it lies in x's front hemisphere.
       const double F = formfactor::point_to_polygon(x, n, poly);
-      r.from_patches += (V * kPi * F) * radiance->row(j).transpose().array();
+      if (!(F > 0)) continue;
+      const double V = I.visible_fraction(x, n, j, ignore);
+      first[size_t(j)] = V > 0;
+      if (V > 0) r.from_patches += (V * kPi * F) * radiance->row(j).transpose().array();
+      continue;
+    }
+    const Moments m = polygon_moments(x, n, up, poly);
+    if (!(m.cos_above + m.cos_below > 0)) continue;  // outside x's front hemisphere
+    covered += m;
+    if (lit) {
+      const double F = formfactor::point_to_polygon(x, n, poly);
+      r.from_patches += (kPi * F) * radiance->row(j).transpose().array();
     }
   }
   if (rays) {
