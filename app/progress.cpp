@@ -2,12 +2,34 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 
 namespace lambert::app {
 
 Progress::Progress(std::string phase, bool enabled)
-    : phase_(std::move(phase)), enabled_(enabled), tty_(isatty(STDERR_FILENO) != 0) {}
+    : phase_(std::move(phase)),
+      enabled_(enabled),
+      tty_(isatty(STDERR_FILENO) != 0),
+      start_(std::chrono::steady_clock::now()) {}
+
+std::string format_duration(double seconds) {
+  const double t = std::isfinite(seconds) && seconds > 0 ? seconds : 0;
+  const long long s = static_cast<long long>(t);
+  char buf[48];
+  if (t < 10) std::snprintf(buf, sizeof buf, "%.1f s", std::floor(t * 10) / 10);
+  else if (s < 60) std::snprintf(buf, sizeof buf, "%lld s", s);
+  else if (s < 3600) std::snprintf(buf, sizeof buf, "%lld min %02lld s", s / 60, s % 60);
+  else std::snprintf(buf, sizeof buf, "%lld h %02lld min", s / 3600, (s % 3600) / 60);
+  return buf;
+}
+
+std::string progress_timing(double fraction, double elapsed) {
+  std::string out = format_duration(elapsed);
+  if (elapsed >= 3 && fraction >= 0.01 && fraction < 1)
+    out += ", about " + format_duration(elapsed * (1 - fraction) / fraction) + " left";
+  return out;
+}
 
 Progress::~Progress() { done(); }
 
@@ -33,8 +55,16 @@ void Progress::update(double fraction) {
 }
 
 void Progress::print(double fraction, bool final_line) {
-  std::fprintf(stderr, "%s  %-14s %3d%%  %s%s", tty_ ? "\r" : "", phase_.c_str(), static_cast<int>(fraction * 100 + 1e-9),
-               note_.c_str(), (final_line || !tty_) ? "\n" : "");
+  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  char head[64];
+  std::snprintf(head, sizeof head, "  %-14s %3d%%  ", phase_.c_str(), static_cast<int>(fraction * 100 + 1e-9));
+  std::string line = head + progress_timing(final_line ? 1.0 : fraction, elapsed);
+  if (!note_.empty()) line += "  " + note_;
+  // On a terminal the line is rewritten in place: padded to the last one's length, so nothing of it is left behind.
+  const size_t len = line.size();
+  if (tty_ && line.size() < last_length_) line.append(last_length_ - line.size(), ' ');
+  last_length_ = len;
+  std::fprintf(stderr, "%s%s%s", tty_ ? "\r" : "", line.c_str(), (final_line || !tty_) ? "\n" : "");
   std::fflush(stderr);
 }
 

@@ -8,7 +8,8 @@
 
 namespace lambert::app {
 
-// Prints "  form factors  42%" on stderr: rewritten in place on a terminal, one line per 10% otherwise.
+// Prints "  form factors  42%  1 min 10 s, about 1 min 37 s left" on stderr: rewritten in place on a terminal, one
+// line per 10% otherwise; the final line gives the phase's whole time.
 class Progress {
  public:
   Progress(std::string phase, bool enabled);
@@ -23,9 +24,16 @@ class Progress {
   bool enabled_, tty_, finished_ = false;
   int last_decile_ = -1;
   std::string note_;
-  std::chrono::steady_clock::time_point last_print_{};
+  size_t last_length_ = 0;
+  std::chrono::steady_clock::time_point start_, last_print_{};
   std::mutex mutex_;
 };
+
+// "4.2 s", "12 s", "3 min 05 s", "1 h 12 min" (rounded down; negative or NaN as 0).
+std::string format_duration(double seconds);
+// What follows a phase's percentage: the time elapsed, and once the phase has run for at least 3 s and done at least
+// 1 % of its work, the time left at the rate so far ("1 min 10 s, about 1 min 37 s left"). fraction in [0, 1].
+std::string progress_timing(double fraction, double elapsed_seconds);
 
 // Wall-clock time per named phase, in the order the phases ran.
 class PhaseTimer {
