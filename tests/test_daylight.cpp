@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <filesystem>
 
@@ -575,6 +576,67 @@ TEST_F(Daylight, ResultsIndependentOfPositionAndThreads) {
     EXPECT_NEAR(far[k].df, here[k].df, 1e-6) << "sensor " << k << " shifted by 1e6 m";
     EXPECT_EQ(one[k].df, here[k].df) << "sensor " << k << ": 1 thread against all";
   }
+}
+
+// A small city on a lattice (integer coordinates: a ground of 4 m quads, eight 2 m towers 3-8 m tall, z up) with
+// sensors on a 1 m lattice 1.5 m above the ground, solved where it is and 1e6 m / 2e6 m away: every sensor agrees
+// within 1e-6 of the brightest (the patches' radiance agrees to 1e-10). Where the rays to each patch went to the
+// centroids of its sub-triangles (thirds of the lattice), rays from the lattice of sensors passed exactly through
+// tower corners, decided by float rounding: 88 of the 1,600 sensors moved, by up to 1.1e-3 of the brightest.
+TEST_F(Daylight, SensorsOnALatticeInALatticeCityIndependentOfPosition) {
+  auto city = [](double shift) {
+    std::string v, f;
+    int count = 0;
+    auto quad = [&](std::array<Vec3, 4> c) {
+      f += "f";
+      for (const Vec3& q : c) {
+        char buf[128];
+        std::snprintf(buf, sizeof buf, "v %.17g %.17g %.17g\n", q.x() + shift, q.y() + 2 * shift, q.z());
+        v += buf;
+        f += ' ';
+        f += std::to_string(++count);
+      }
+      f += "\n";
+    };
+    for (int i = 0; i < 10; ++i)
+      for (int j = 0; j < 10; ++j) {
+        const double x = 4 * i, y = 4 * j;
+        quad({Vec3(x, y, 0), Vec3(x + 4, y, 0), Vec3(x + 4, y + 4, 0), Vec3(x, y + 4, 0)});
+      }
+    const int towers[8][3] = {{9, 13, 5}, {21, 5, 8}, {13, 29, 3}, {29, 21, 6}, {5, 33, 7}, {33, 9, 4}, {17, 17, 8}, {25, 33, 5}};
+    for (const auto& t : towers) {
+      const double x = t[0], y = t[1], h = t[2], w = 2;
+      const Vec3 b[4] = {Vec3(x, y, 0), Vec3(x + w, y, 0), Vec3(x + w, y + w, 0), Vec3(x, y + w, 0)};
+      const Vec3 up(0, 0, h);
+      quad({b[0] + up, b[1] + up, b[2] + up, b[3] + up});
+      for (int k = 0; k < 4; ++k) quad({b[k], b[(k + 1) % 4], b[(k + 1) % 4] + up, b[k] + up});
+    }
+    return v + f;
+  };
+  std::vector<std::vector<SensorRow>> rows;
+  for (double shift : {0.0, 1e6}) {
+    const std::string tag = shift == 0 ? "here" : "far";
+    const std::string obj = write("city_" + tag + ".obj", city(shift));
+    const auto r = run_solve(obj + " -o " + path("city_" + tag + ".vtu") + " --sky uniform --up z --work-plane 1.5 --grid 1 " +
+                             "--sensors-out " + path("city_" + tag + "_s.csv") + " --quiet");
+    ASSERT_EQ(r.status, 0) << r.output;
+    rows.push_back(read_rows(path("city_" + tag + "_s.csv")));
+  }
+  ASSERT_EQ(rows[0].size(), rows[1].size());
+  ASSERT_GT(rows[0].size(), 1000u);
+  double brightest = 0;
+  for (const SensorRow& s : rows[0]) brightest = std::max(brightest, s.illuminance);
+  int moved = 0;
+  for (size_t k = 0; k < rows[0].size(); ++k) {
+    const SensorRow &a = rows[0][k], &b = rows[1][k];
+    ASSERT_EQ(b.x, a.x + Vec3(1e6, 2e6, 0)) << "sensor " << k;
+    if (std::abs(a.illuminance - b.illuminance) > 1e-6 * brightest) {
+      if (++moved <= 5)
+        ADD_FAILURE() << "sensor " << k << " at " << a.x.transpose() << ": " << a.illuminance << " here, " << b.illuminance
+                      << " 1e6 m away";
+    }
+  }
+  EXPECT_EQ(moved, 0) << "of " << rows[0].size() << " sensors";
 }
 
 // The hierarchical operator weighs each link by the emission it carries; under a sky that is the sky's term,
