@@ -25,6 +25,7 @@
 
 #include "cli_util.hpp"
 #include "test_formfactor_util.hpp"
+#include "clip.hpp"
 #include "lambert/daylight/daylight.hpp"
 #include "lambert/daylight/sky.hpp"
 #include "lambert/mesh/shapes.hpp"
@@ -576,6 +577,88 @@ TEST_F(Daylight, ResultsIndependentOfPositionAndThreads) {
     EXPECT_NEAR(far[k].df, here[k].df, 1e-6) << "sensor " << k << " shifted by 1e6 m";
     EXPECT_EQ(one[k].df, here[k].df) << "sensor " << k << ": 1 thread against all";
   }
+}
+
+// Clipper's difference of a hemicube face minus 225 projected polygons from udales_shape.obj (tests/data), a case where
+// Clipper 6.4 alone returns an outer boundary wound as a hole around covered directions, which then counted as open
+// sky. detail::difference must return a consistent tree (outer boundaries counter-clockwise, holes clockwise) whose
+// area equals the face minus the polygons' union (computed first, separately), and a covered point must not be in
+// it. Tolerance: 1e-12 of the face's area (both are exact integer operations; only Clipper's rounding of crossings
+// separates them).
+TEST(DaylightClipping, DifferenceIsConsistentWhereClipperAloneIsNot) {
+  std::ifstream in(std::string(LAMBERT_SOURCE_DIR) + "/tests/data/clipper_malformed_difference.txt");
+  ASSERT_TRUE(in) << "tests/data/clipper_malformed_difference.txt";
+  std::string line;
+  while (in.peek() == '#') std::getline(in, line);
+  auto read = [&] {
+    size_t n = 0;
+    in >> n;
+    ClipperLib::Paths paths(n);
+    for (auto& p : paths) {
+      size_t m = 0;
+      in >> m;
+      p.resize(m);
+      for (auto& q : p) in >> q.X >> q.Y;
+    }
+    return paths;
+  };
+  const ClipperLib::Paths face = read(), clip = read();
+  ASSERT_EQ(face.size(), 1u);
+  ASSERT_EQ(clip.size(), 225u);
+  const double S = 268435456.0, face_area = 4 * S * S;
+  auto area = [](const ClipperLib::PolyTree& t) {
+    ClipperLib::Paths paths;
+    ClipperLib::PolyTreeToPaths(t, paths);
+    double a = 0;
+    for (const auto& p : paths) a += ClipperLib::Area(p);
+    return a;
+  };
+  ClipperLib::Clipper c;
+  ClipperLib::PolyTree plain, checked, reference;
+  c.AddPaths(face, ClipperLib::ptSubject, true);
+  c.AddPaths(clip, ClipperLib::ptClip, true);
+  c.Execute(ClipperLib::ctDifference, plain, ClipperLib::pftNonZero, ClipperLib::pftPositive);
+  if (daylight::detail::consistent(plain))
+    std::printf("note: this Clipper returns a consistent difference here (the case no longer exercises the retry)\n");
+  ClipperLib::Paths united;
+  c.Clear();
+  c.AddPaths(clip, ClipperLib::ptSubject, true);
+  c.Execute(ClipperLib::ctUnion, united, ClipperLib::pftPositive, ClipperLib::pftPositive);
+  c.Clear();
+  c.AddPaths(face, ClipperLib::ptSubject, true);
+  c.AddPaths(united, ClipperLib::ptClip, true);
+  c.Execute(ClipperLib::ctDifference, reference, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+  ASSERT_TRUE(daylight::detail::consistent(reference));
+  daylight::detail::difference(c, face, clip, checked);
+  EXPECT_TRUE(daylight::detail::consistent(checked));
+  EXPECT_NEAR(area(checked), area(reference), 1e-12 * face_area);
+  EXPECT_GT(area(checked), 0.01 * face_area);  // something stays open
+  // The same region, not only the same area: their symmetric difference is empty (to Clipper's rounding).
+  ClipperLib::Paths a, b;
+  ClipperLib::PolyTreeToPaths(checked, a);
+  ClipperLib::PolyTreeToPaths(reference, b);
+  ClipperLib::PolyTree x;
+  c.Clear();
+  c.AddPaths(a, ClipperLib::ptSubject, true);
+  c.AddPaths(b, ClipperLib::ptClip, true);
+  c.Execute(ClipperLib::ctXor, x, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+  ClipperLib::Paths xs;
+  ClipperLib::PolyTreeToPaths(x, xs);
+  double xa = 0;
+  for (const auto& p : xs) xa += std::abs(ClipperLib::Area(p));
+  EXPECT_LE(xa, 1e-12 * face_area);
+  // Clipper alone: its region, read as it reads it (non-zero), is not the reference.
+  ClipperLib::Paths p0;
+  ClipperLib::PolyTreeToPaths(plain, p0);
+  c.Clear();
+  c.AddPaths(p0, ClipperLib::ptSubject, true);
+  c.AddPaths(b, ClipperLib::ptClip, true);
+  c.Execute(ClipperLib::ctXor, x, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+  ClipperLib::PolyTreeToPaths(x, xs);
+  xa = 0;
+  for (const auto& p : xs) xa += std::abs(ClipperLib::Area(p));
+  std::printf("Clipper alone: consistent %d, region off by %.3g of the face\n", int(daylight::detail::consistent(plain)),
+              xa / face_area);
 }
 
 // A small city on a lattice (integer coordinates: a ground of 4 m quads, eight 2 m towers 3-8 m tall, z up) with

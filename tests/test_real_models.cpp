@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <map>
 #include <numbers>
+#include <random>
 #include <set>
 #include <string>
 #include <vector>
@@ -352,7 +353,11 @@ TEST(RealModelsDaylight, NonConvexPatchTakesItsSkyFromAPointOnIt) {
 // first through the tree, a batch at a time with the seams dropped, it equals the union of every polygon subtracted
 // at once (every patch hinted) within 1e-7 of the hemisphere's irradiance. Fails when a cone plane of the tree's
 // culling is turned round; it failed too for a tried variant (coplanar patches united in chunks of 256, thin holes
-// dropped like thin open pieces): ground patch 1800 got 1.9 % too much sky.
+// dropped like thin open pieces): ground patch 1800 got 1.9 % too much sky. A third order, the polygons of a random
+// half of the plane groups subtracted first (as a hint that is half wrong), must give the same: Clipper's difference
+// once came out malformed (an outer boundary wound as a hole) and left covered directions open, only in some orders:
+// wall patch 3703 got 13 % more sky with such a hint, 3701 with every patch hinted (while polygons with holes were
+// being changed), each caught here.
 TEST(RealModelsDaylight, OpenSkyNearestFirstEqualsOneUnionOnUdales) {
   const std::string path = shared_model("udales_shape.obj");
   if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not found (../shared/models is outside the repository)";
@@ -365,11 +370,16 @@ TEST(RealModelsDaylight, OpenSkyNearestFirstEqualsOneUnionOnUdales) {
   const double scale = daylight::irradiance(sky, daylight::hemisphere_moments(sky.up, sky.up));
   std::vector<int> points;
   for (int p = 0; p < g.size(); p += 16) points.push_back(p);
-  points.push_back(1800);
+  for (int p : {1800, 3701, 3703}) points.push_back(p);
+  std::vector<char> half(size_t(g.size()));
   for (int p : points) {
+    std::mt19937 random(static_cast<unsigned>(p));
+    for (char& c : half) c = char(random() % 2);
     const double tree = daylight::irradiance(sky, gather.open(g.centroid[p], g.normal[p], sky.up, p, {}));
     const double once = daylight::irradiance(sky, gather.open(g.centroid[p], g.normal[p], sky.up, p, all));
+    const double mixed = daylight::irradiance(sky, gather.open(g.centroid[p], g.normal[p], sky.up, p, half));
     EXPECT_NEAR(tree, once, 1e-7 * scale) << "patch " << p << " at " << g.centroid[p].transpose();
+    EXPECT_NEAR(tree, mixed, 1e-7 * scale) << "patch " << p << " at " << g.centroid[p].transpose() << ", half hinted";
   }
 }
 

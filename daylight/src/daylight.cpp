@@ -86,7 +86,12 @@ struct CubeFace {
 
 // The scene's patches merged per plane (coplanar patches united: far fewer, larger polygons to clip).
 struct Merged {
-  std::vector<std::vector<Vec3>> polygons;  // keyholed where a union has holes
+  std::vector<std::vector<Vec3>> polygons;  // outer boundaries
+  // Per polygon, its holes (wound against its boundary in its plane). Not keyholed into the boundary: after
+  // projection and rounding a keyhole's bridge edges can cross (udales_shape.obj's ground, 201 corners, projected
+  // onto a wall patch's hemicube face: its signed area 9 % below the area it covers, a loop wound backwards, which
+  // the non-zero fill counted as covered).
+  std::vector<std::vector<std::vector<Vec3>>> holes;
   std::vector<int> group;                   // polygon -> plane group
   std::vector<int> patch_group;             // patch -> plane group
   int groups = 0;
@@ -178,10 +183,8 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
   Moments open;
   for (const CubeFace& F : faces) {
     const Vec3 planes[4] = {F.f - F.ea, F.f + F.ea, F.f - F.eb, F.b0 < 0 ? Vec3(F.f + F.eb) : F.eb};
-    // Projects polygon j onto this face into pts (counter-clockwise: the union below counts any covered point
-    // once, whichever side of the patch x sees); false if it misses the face.
-    auto project = [&](int j) {
-      const auto& poly = M.polygons[size_t(j)];
+    // Projects a ring onto this face into pts (as wound); false if it misses the face.
+    auto project_ring = [&](const std::vector<Vec3>& poly) {
       rel.resize(poly.size());
       for (size_t k = 0; k < poly.size(); ++k) rel[k] = poly[k] - x;
       detail::clip_halfspace(rel, F.f, a);
@@ -198,8 +201,25 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
         const double u = std::clamp(F.ea.dot(p) / w, -1.0, 1.0), v = std::clamp(F.eb.dot(p) / w, F.b0, 1.0);
         pts.emplace_back(ClipperLib::cInt(std::lround(u * kGridScale)), ClipperLib::cInt(std::lround(v * kGridScale)));
       }
-      if (pts.size() < 3) return false;
-      if (!ClipperLib::Orientation(pts)) ClipperLib::ReversePath(pts);
+      return pts.size() >= 3;
+    };
+    // Adds polygon j projected onto this face to `covered`: its boundary counter-clockwise, its holes clockwise
+    // (whichever side of the patch x sees), so that with positive fill the clip paths cover every point some
+    // polygon covers, once however many overlap, and not a polygon's holes unless another covers them. pts keeps the
+    // boundary. False if the boundary misses the face.
+    auto add = [&](int j) {
+      if (!project_ring(M.polygons[size_t(j)])) return false;
+      const bool flip = !ClipperLib::Orientation(pts);
+      if (flip) ClipperLib::ReversePath(pts);
+      covered.push_back(pts);
+      for (const auto& hole : M.holes[size_t(j)]) {
+        const ClipperLib::Path boundary = std::move(pts);
+        if (project_ring(hole)) {
+          if (flip) ClipperLib::ReversePath(pts);
+          covered.push_back(pts);
+        }
+        pts = boundary;
+      }
       return true;
     };
     const ClipperLib::cInt S = ClipperLib::cInt(kGridScale), v0 = ClipperLib::cInt(F.b0 * kGridScale);
@@ -225,12 +245,11 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
       cone[2] = F.eb - w0 * F.f;
       cone[3] = w1 * F.f - F.eb;
     };
+    int batched = 0;  // polygons in `covered`
     auto subtract = [&] {
+      batched = 0;
       if (covered.empty()) return;
-      clipper.Clear();
-      clipper.AddPaths(sky, ClipperLib::ptSubject, true);
-      clipper.AddPaths(covered, ClipperLib::ptClip, true);
-      clipper.Execute(ClipperLib::ctDifference, tree, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
+      detail::difference(clipper, sky, covered, tree);
       // Seams dropped: an open piece narrower on average (2 area / perimeter) than kCrack grid units is where the
       // patches' rounded corners meet (walls, floor and ceiling), not open sky; left in, the seams kept every
       // room's hemicube open and its whole cone visited. Such a piece goes with the holes inside it; a hole (what
@@ -274,7 +293,7 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
     // The likely-visible polygons first, all at once (they cover most of a room's hemicube).
     if (first_group) {
       for (int j = 0; j < int(M.polygons.size()); ++j)
-        if (!skipped(j, true) && project(j)) covered.push_back(pts);
+        if (!skipped(j, true)) add(j);
       subtract();
     }
     if (sky.empty()) continue;
@@ -303,9 +322,14 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
       if (nd.count > 0) {
         for (int k = nd.first; k < nd.first + nd.count; ++k) {
           const int j = M.items[size_t(k)];
-          if (skipped(j, false) || !project(j) || !in_box()) continue;
-          covered.push_back(pts);
-          if (int(covered.size()) >= kBatch) subtract();
+          if (skipped(j, false)) continue;
+          const size_t before = covered.size();
+          if (!add(j)) continue;
+          if (!in_box()) {
+            covered.resize(before);
+            continue;
+          }
+          if (++batched >= kBatch) subtract();
         }
         continue;
       }
@@ -378,6 +402,7 @@ struct Gatherer::Impl {
       if (members[G].size() == 1) {
         const auto poly = g.polygon(members[G][0]);
         merged.polygons.emplace_back(poly.begin(), poly.end());
+        merged.holes.emplace_back();
         merged.group.push_back(int(G));
         continue;
       }
@@ -391,18 +416,32 @@ struct Gatherer::Impl {
         pd.set(pts.begin(), pts.end());
         set.insert(pd);
       }
-      std::vector<bp::polygon_data<int>> out;
+      std::vector<bp::polygon_with_holes_data<int>> out;
       set.get(out);
-      for (const auto& pd : out) {
+      // A ring back in 3D, exactly in the plane, wound counter-clockwise about gn (boundary) or clockwise (hole).
+      auto ring = [&](auto begin, auto end, bool boundary) {
         std::vector<Vec3> poly;
-        for (auto it = pd.begin(); it != pd.end(); ++it) {
+        double twice_area = 0;
+        for (auto it = begin; it != end; ++it) {
+          auto next = std::next(it) == end ? begin : std::next(it);
+          twice_area += double(bp::x(*it)) * double(bp::y(*next)) - double(bp::x(*next)) * double(bp::y(*it));
           const Vec3 q = o + (double(bp::x(*it)) / scale) * e1 + (double(bp::y(*it)) / scale) * e2;
-          poly.push_back(q + (gn[G].dot(o) - gn[G].dot(q)) * gn[G]);  // exactly in the plane
+          poly.push_back(q + (gn[G].dot(o) - gn[G].dot(q)) * gn[G]);
         }
-        if (poly.size() >= 3) {
-          merged.polygons.push_back(std::move(poly));
-          merged.group.push_back(int(G));
+        if ((twice_area > 0) != boundary) std::reverse(poly.begin(), poly.end());
+        return poly;
+      };
+      for (const auto& pd : out) {
+        std::vector<Vec3> poly = ring(pd.begin(), pd.end(), true);
+        if (poly.size() < 3) continue;
+        std::vector<std::vector<Vec3>> hs;
+        for (auto h = pd.begin_holes(); h != pd.end_holes(); ++h) {
+          std::vector<Vec3> hole = ring(h->begin(), h->end(), false);
+          if (hole.size() >= 3) hs.push_back(std::move(hole));
         }
+        merged.polygons.push_back(std::move(poly));
+        merged.holes.push_back(std::move(hs));
+        merged.group.push_back(int(G));
       }
     }
   }
