@@ -34,7 +34,8 @@ void declare_daylight_files(const CommonOptions& o) {
   if (!o.sensors.empty()) outputs().add_input(o.sensors);
   if (!o.sensors_out.empty()) {
     outputs().add_output(o.sensors_out, "--sensors-out");
-    outputs().add_output(sensors_vtu_path(o.sensors_out), "--sensors-out (.vtu)");
+    outputs().add_output(sensors_vtu_path(o.sensors_out),
+                         "--sensors-out points (the .vtu written beside '" + o.sensors_out + "', same name)");
   }
 }
 

@@ -803,7 +803,11 @@ TEST_F(Daylight, BadDaylightOptionsExitOne) {
                         Case{"--work-plane 0.8", "--work-plane needs --grid"},
                         Case{"--sensors-out " + path("o.csv"), "--sensors-out needs sensors"},
                         Case{"--sky uniform --ground-reflectance 1.5", "--ground-reflectance"},
-                        Case{"--units lumens", "--units"}}) {
+                        Case{"--units lumens", "--units"},
+                        // -o r.vtu with --sensors-out r.csv: the sensors' points would go to r.vtu too; the message says
+                        // where that file comes from.
+                        Case{"--sky uniform --work-plane 0.8 --grid 0.5 --sensors-out " + path("r.csv"),
+                             "the .vtu written beside '" + path("r.csv") + "'"}}) {
     const auto r = run_solve(obj + out + " " + c.args);
     EXPECT_EQ(r.status, 1) << c.args << ": " << r.output;
     EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.args << ": expected '" << c.expect << "' in " << r.output;
