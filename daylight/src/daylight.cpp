@@ -7,10 +7,10 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <cstdint>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <limits>
 
