@@ -509,3 +509,32 @@ TEST(FormFactorReuse, ReusedAssemblyEqualsFreshAssembly) {
   o.reuse = &r;
   EXPECT_THROW(assemble(gf, o), InternalError) << "a repeated reuse index is a caller bug, not bad input";
 }
+
+// The room with a floating block (8 x 8 quads per wall, 3 x 3 per block face), as built and turned about (1, 2, 3)
+// by 0.7 rad: as many pairs proven unoccluded by the axis-aligned shafts, because the assembly works on a copy
+// turned back onto the axes (detail::moved_to_origin), and the same form factors with exact visibility (the kernel
+// and the clipping are exact under rotation; the rays' estimates are not compared: a turned quad is a parallelogram
+// only to rounding and is sampled another way, other noise). Without the copy the turned room proved 10 % fewer
+// pairs clear (56,196 upright, 50,679 turned, 56,094 on the copy; the 10k building turned: 1.46 M -> 0.54 M, form
+// factors 3.9 -> 10.6 s). Tolerances: 3 % fewer clear pairs at most; 1e-9 per entry (the two frames' rounding).
+TEST(FormFactorAssembly, TurnedSceneIsAssembledOnTheAxes) {
+  const shapes::Polygons upright = shapes::room_with_block(8, 3);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  shapes::Polygons turned = upright;
+  for (auto& poly : turned)
+    for (Vec3& p : poly) p = R * p;
+  const mesh::PatchGeometry gu = mesh::PatchGeometry::from_polygons(upright), gt = mesh::PatchGeometry::from_polygons(turned);
+  Stats su, st;
+  assemble(gu, {}, &su);
+  assemble(gt, {}, &st);
+  EXPECT_GT(su.pairs_shaft_culled, 0);
+  EXPECT_GE(double(st.pairs_shaft_culled), 0.97 * double(su.pairs_shaft_culled))
+      << su.pairs_shaft_culled << " clear upright, " << st.pairs_shaft_culled << " turned";
+  Options exact;
+  exact.visibility_method = VisibilityMethod::Exact;
+  const auto Fu = assemble(gu, exact), Ft = assemble(gt, exact);
+  Eigen::Index i = 0, j = 0;
+  const double diff = (Fu.matrix() - Ft.matrix()).cwiseAbs().maxCoeff(&i, &j);
+  EXPECT_LE(diff, 1e-9) << "F(" << i << ", " << j << "): " << Fu.matrix()(i, j) << " upright, " << Ft.matrix()(i, j)
+                        << " turned";
+}
