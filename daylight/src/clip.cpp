@@ -28,7 +28,16 @@ void difference(ClipperLib::Clipper& c, const ClipperLib::Paths& subject, const 
   c.AddPaths(united, ClipperLib::ptClip, true);
   c.Execute(ClipperLib::ctDifference, out, ClipperLib::pftNonZero, ClipperLib::pftNonZero);
   if (consistent(out) || clip.size() < 2 || depth >= 16) return;
-  const auto mid = clip.begin() + std::ptrdiff_t(clip.size() / 2);
+  // Halves of whole polygons: a hole (clockwise) stays with the boundary before it, or alone it would cover nothing
+  // while its boundary covered it.
+  size_t half = clip.size() / 2;
+  while (half < clip.size() && !ClipperLib::Orientation(clip[half])) ++half;
+  if (half == clip.size()) {
+    half = clip.size() / 2;
+    while (half > 0 && !ClipperLib::Orientation(clip[half])) --half;
+  }
+  if (half == 0) return;
+  const auto mid = clip.begin() + std::ptrdiff_t(half);
   const ClipperLib::Paths first(clip.begin(), mid), second(mid, clip.end());
   difference(c, subject, first, out, depth + 1);
   ClipperLib::Paths rest;

@@ -37,7 +37,8 @@ bool consistent(const ClipperLib::PolyTree& t);
 // malformed when many clip paths have nearly collinear edges (udales_shape.obj, a wall patch's hemicube minus 225
 // projected polygons: an outer boundary wound as a hole around covered directions, which were then counted as open
 // sky, 12 % of that patch's sky, in one order of the polygons and not in another). Checked after every difference;
-// redone against the clip paths' union, then half of them at a time (depth: the halving's recursion).
+// redone against the clip paths' union, then half of them at a time (depth: the halving's recursion). clip: each
+// polygon a counter-clockwise boundary followed by its clockwise holes.
 void difference(ClipperLib::Clipper& c, const ClipperLib::Paths& subject, const ClipperLib::Paths& clip,
                 ClipperLib::PolyTree& out, int depth = 0);
 

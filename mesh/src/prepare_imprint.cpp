@@ -183,13 +183,17 @@ bool separated_in_plane(const FaceData& f, const FaceData& g, double margin) {
 }
 
 // The parts of segment [a, b] (points of f's plane) inside f's polygon, in f's plane coordinates: the segment cut
-// at every crossing with f's edges, the pieces whose midpoints lie inside (crossing number) kept.
+// at every crossing with f's edges, the pieces whose midpoints lie strictly inside (CGAL's bounded_side_2) kept.
 std::vector<std::array<Vec3, 2>> clip_to_face(const FaceData& f, const Vec3& a, const Vec3& b) {
   const Eigen::Vector2d A = to2(f, a), B = to2(f, b), d = B - A;
   std::vector<double> ts{0.0, 1.0};
   const size_t m = f.poly.size();
   std::vector<Eigen::Vector2d> P(m);
-  for (size_t k = 0; k < m; ++k) P[k] = to2(f, f.poly[k]);
+  std::vector<K::Point_2> outline;
+  for (size_t k = 0; k < m; ++k) {
+    P[k] = to2(f, f.poly[k]);
+    outline.emplace_back(P[k].x(), P[k].y());
+  }
   for (size_t k = 0; k < m; ++k) {
     const Eigen::Vector2d &p = P[k], e = P[(k + 1) % m] - P[k];
     const double den = d.x() * e.y() - d.y() * e.x();
@@ -203,12 +207,8 @@ std::vector<std::array<Vec3, 2>> clip_to_face(const FaceData& f, const Vec3& a, 
   for (size_t k = 0; k + 1 < ts.size(); ++k) {
     if (!(ts[k + 1] > ts[k])) continue;
     const Eigen::Vector2d c = A + 0.5 * (ts[k] + ts[k + 1]) * d;
-    bool inside = false;
-    for (size_t i = 0, j = m - 1; i < m; j = i++)
-      if ((P[i].y() > c.y()) != (P[j].y() > c.y()) &&
-          c.x() < (P[j].x() - P[i].x()) * (c.y() - P[i].y()) / (P[j].y() - P[i].y()) + P[i].x())
-        inside = !inside;
-    if (inside) out.push_back({a + ts[k] * (b - a), a + ts[k + 1] * (b - a)});
+    if (CGAL::bounded_side_2(outline.begin(), outline.end(), K::Point_2(c.x(), c.y()), K()) == CGAL::ON_BOUNDED_SIDE)
+      out.push_back({a + ts[k] * (b - a), a + ts[k + 1] * (b - a)});
   }
   return out;
 }
