@@ -273,6 +273,36 @@ TEST(PrepareOrient, ClosedBlockRestingOnTheFloorIsNested) {
   EXPECT_EQ(count(r, "self_intersections"), 0) << all_warnings(r);
 }
 
+TEST(PrepareOrient, OpenBottomedBlockOnTheFloorWoundInwardIsTurnedRound) {
+  // Room [0,4]^3 wound inward (right), a low block [1,3]x[0,0.5]x[1,3] standing on its floor without a bottom face
+  // (as the public Cornell box's blocks) wound inward (wrong: a mirrored export). Rays leaving the block's inner side
+  // go out through the open bottom and end on the floor under it (most of them, the block being low): they never
+  // left the block's inside and are no evidence. Its outer side is what the room sees: turned round, and the floor
+  // under it removed as hidden. Counted as evidence, those rays left the block as the file wound it.
+  const auto room = shapes::box(Vec3::Zero(), Vec3::Constant(4), 1, true);
+  auto block = shapes::box(Vec3(1, 0, 1), Vec3(3, 0.5, 3), 1, true);
+  block.erase(block.begin() + 2);  // its bottom (-y)
+  shapes::Polygons polys = room;
+  polys.insert(polys.end(), block.begin(), block.end());
+  Report r;
+  const PolygonSoup out = prepare(soup_from(polys), {}, r);
+  EXPECT_EQ(count(r, "surfaces_flipped"), 1) << all_warnings(r);
+  EXPECT_EQ(count(r, "faces_reoriented"), 5) << all_warnings(r);
+  EXPECT_EQ(count(r, "faces_seen_from_behind"), 0) << all_warnings(r);
+  // The floor's piece under the block (4 m^2) is gone: what remains of the floor is 16 - 4 m^2. Tolerance:
+  // integer corners, sums of a few products (round-off ~1e-15).
+  double floor_area = 0;
+  for (const auto& f : out.faces)
+    if (f.origin == 2) floor_area += 0.5 * newell_normal(corners(out, f)).norm();
+  EXPECT_NEAR(floor_area, 12.0, 1e-12) << all_warnings(r);
+  // Every block face (input faces 6..10) faces away from the block's centre (2, 0.25, 2).
+  for (const auto& f : out.faces) {
+    if (f.origin < 6) continue;
+    const auto c = corners(out, f);
+    EXPECT_LT(newell_normal(c).dot(Vec3(2, 0.25, 2) - centroid(c)), 0) << "input face " << f.origin;
+  }
+}
+
 TEST(PrepareOrient, OpenBoxKeepsMajorityOrientation) {
   // Unit box without its top (+y, index 3): 5 faces. Flip 2 of them, then 3 of them.
   auto box = shapes::box(Vec3::Zero(), Vec3::Ones(), 1, true);

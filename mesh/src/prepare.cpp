@@ -404,7 +404,7 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
     clean_faces(out, report);
     remove_duplicate_faces(out, report);
     stage("weld");
-    orient(out, options.orient, report);
+    orient(out, options.orient, tol, report);
     stage("orient");
     if (options.imprint) {
       imprint(out, tol, report);

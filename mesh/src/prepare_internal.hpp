@@ -48,7 +48,8 @@ double distance_to_segment(const Vec3& p, const Vec3& a, const Vec3& b);
 double distance_to_boundary(const Vec3& p, const std::vector<Vec3>& poly);
 
 // Repair steps (see prepare.hpp for what each does and reports).
-void orient(PolygonSoup& s, Orientation mode, Report& report);
+// tol (m): how far a ray's end may lie off the plane of a surface's planar opening and still close it.
+void orient(PolygonSoup& s, Orientation mode, double tol, Report& report);
 // Contact lines and crossings imprinted, hidden fragments removed (prepare_imprint.cpp).
 //                                                      "faces_imprinted", "hidden_fragments_removed"
 void imprint(PolygonSoup& s, double tol, Report& report);

@@ -6,6 +6,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -117,11 +118,98 @@ Components components(const PolygonSoup& s) {
 
 void flip_face(SoupFace& f) { std::reverse(f.vertices.begin() + 1, f.vertices.end()); }  // keeps the first corner
 
+// A surface's open edges (used once within it: the open bottom of a block standing on a floor; of a bed, headboard
+// and nightstands standing on it as one surface). A ray from the surface that ends on another surface in whose
+// plane some of these edges lie, inside them, went through the opening and ended on what closes it. It never left
+// the surface's inside; like a ray ending on the surface itself, it says nothing about which side the rest of the
+// scene sees. Inside: an odd number of the edges on either side, in that plane; a chain of them that leaves the
+// plane is followed along the open edges until it comes back, and that path counts as seen along the normal (a
+// counter open at the bottom and at the back against two walls: the floor holds three sides of its footprint,
+// the top's back edges along the walls close it).
+struct Openings {
+  std::vector<std::array<int, 2>> edges;  // vertex indices
+  std::vector<std::pair<int, int>> at;    // (vertex, edge), sorted
+  Eigen::AlignedBox3d box;                // the edges' box, grown by tol
+  // x: where the ray ends, on a face with unit normal n.
+  bool enclose(const PolygonSoup& s, const Vec3& x, const Vec3& n, double tol) const {
+    if (edges.size() < 2 || !box.contains(x)) return false;
+    auto in_plane = [&](int v) { return std::abs(n.dot(s.positions[v] - x)) <= tol; };
+    std::vector<char> used(edges.size(), 0);
+    std::vector<int> path;  // edges counted
+    for (size_t e = 0; e < edges.size(); ++e)
+      if (in_plane(edges[e][0]) && in_plane(edges[e][1])) used[e] = 1, path.push_back(static_cast<int>(e));
+    if (path.size() < 2) return false;
+    const size_t planar = path.size();
+    // From each vertex in the plane, along open edges out of it, until a vertex in the plane again.
+    for (size_t i = 0; i < planar; ++i)
+      for (int v0 : edges[path[i]]) {
+        int v = v0;
+        for (;;) {
+          int next = -1;
+          for (auto it = std::lower_bound(at.begin(), at.end(), std::make_pair(v, -1)); it != at.end() && it->first == v; ++it)
+            if (!used[it->second]) {
+              next = it->second;
+              break;
+            }
+          if (next < 0) break;
+          used[next] = 1;
+          path.push_back(next);
+          v = edges[next][0] == v ? edges[next][1] : edges[next][0];
+          if (in_plane(v)) break;
+        }
+      }
+    const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized(), w = n.cross(u);
+    bool odd = false;  // crossings of the ray from x along u (half-open in w: a vertex on the ray counts once)
+    for (int e : path) {
+      const Vec3 a = s.positions[edges[e][0]] - x, b = s.positions[edges[e][1]] - x;
+      const double ay = a.dot(w), by = b.dot(w);
+      if ((ay > 0) != (by > 0) && 0 < a.dot(u) + (b.dot(u) - a.dot(u)) * (0 - ay) / (by - ay)) odd = !odd;
+    }
+    return odd;
+  }
+};
+
+std::vector<Openings> openings(const PolygonSoup& s, const Components& C, double tol) {
+  std::vector<Openings> out(C.members.size());
+  struct Use {
+    int comp;
+    std::uint64_t key;
+  };
+  std::vector<Use> uses;
+  for (int k = 0; k < static_cast<int>(s.faces.size()); ++k) {
+    const auto& fv = s.faces[k].vertices;
+    for (size_t c = 0; c < fv.size(); ++c) uses.push_back({C.comp[k], edge_key(fv[c], fv[(c + 1) % fv.size()])});
+  }
+  std::sort(uses.begin(), uses.end(),
+            [](const Use& a, const Use& b) { return a.comp != b.comp ? a.comp < b.comp : a.key < b.key; });
+  for (size_t i = 0; i < uses.size();) {
+    size_t j = i;
+    while (j < uses.size() && uses[j].comp == uses[i].comp && uses[j].key == uses[i].key) ++j;
+    if (j - i == 1) {
+      Openings& o = out[uses[i].comp];
+      const int a = static_cast<int>(uses[i].key >> 32), b = static_cast<int>(uses[i].key & 0xffffffffu);
+      o.edges.push_back({a, b});
+      o.box.extend(s.positions[a]);
+      o.box.extend(s.positions[b]);
+    }
+    i = j;
+  }
+  for (Openings& o : out)
+    if (!o.edges.empty()) {
+      o.box.min().array() -= tol;
+      o.box.max().array() += tol;
+      for (int e = 0; e < static_cast<int>(o.edges.size()); ++e) o.at.insert(o.at.end(), {{o.edges[e][0], e}, {o.edges[e][1], e}});
+      std::sort(o.at.begin(), o.at.end());
+    }
+  return out;
+}
+
 }  // namespace
 
-void orient(PolygonSoup& s, Orientation mode, Report& report) {
+void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
   const int nf = static_cast<int>(s.faces.size());
   const Components C = components(s);
+  const std::vector<Openings> open = mode == Orientation::visibility ? openings(s, C, tol) : std::vector<Openings>{};
   const int nc = static_cast<int>(C.members.size());
   report.counts["faces_reoriented"] += 0;
   report.counts["non_orientable_components"] += 0;
@@ -150,7 +238,7 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
   for (int k = 0; k < nf; ++k) usable[k] = usable_face(s, k);
   const SoupRays rays(s, usable);
   std::vector<double> evidence_front(nc, 0), evidence_back(nc, 0);
-  std::vector<long> back_rays(nc, 0);
+  std::vector<long> front_rays(nc, 0), back_rays(nc, 0);
   struct Ray {
     int face, hit;
     bool from_front;  // leaves the face's current front side
@@ -189,6 +277,8 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
             const int c = C.comp[k];
             const auto own = rays.first(o, dir, [&](int f) { return f == k || C.comp[f] != c; }, h.t * (1 + 1e-9) + 1e-12);
             if (own.face >= 0) h = own;
+            // Through an opening of its own surface onto what closes it (a block's open bottom on the floor).
+            if (own.face < 0 && !open.empty() && open[c].enclose(s, o + h.t * dir, rays.normal(h.face), tol)) continue;
           }
           out.cast.push_back({k, h.face, side == 0, h.front});
           if (several && C.comp[h.face] != C.comp[k]) ++out.evidence[side];
@@ -203,6 +293,7 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
     const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
     evidence_front[c] += area * fr.evidence[0];
     evidence_back[c] += area * fr.evidence[1];
+    front_rays[c] += fr.evidence[0];
     back_rays[c] += fr.evidence[1];
   }
 
@@ -227,6 +318,87 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
     }
   }
 
+  // Second step: surfaces the rays leave undecided (both sides see the scene: a wall face meshed on its own, whose
+  // back faces the other face of a thin wall; a furniture face whose back sees the other faces of its box) take
+  // their side from the decided surfaces they see. A ray between two surfaces is consistent when it leaves a front
+  // and arrives at a front, or leaves a back and arrives at a back. An undecided surface whose rays to and from
+  // decided surfaces are inconsistent with 80 % of their weight (at least 8 rays) is turned round; consistent with
+  // 80 %, it is kept; either way it is decided from the next round on (rounds until nothing changes: the same
+  // result in any order). In a valid model the rays are consistent and nothing turns; one that is not (a light
+  // panel whose back faces the ceiling, a picture on a wall) has both kinds and keeps the file's winding. A model
+  // inside out (a mirrored export, walls and furniture meshed face by face) turns from the surfaces whose side
+  // the first step decided.
+  std::vector<int> coupled_flip(nc, 0);
+  long coupled = 0, coupled_faces = 0;
+  std::vector<int> coupled_ids;
+  if (mode == Orientation::visibility && several) {
+    std::vector<char> decided(nc, 0);
+    for (int c = 0; c < nc; ++c) {
+      const double total = evidence_front[c] + evidence_back[c];
+      decided[c] = surface_flip[c] || (front_rays[c] >= kMinBackRays && evidence_front[c] >= kBackShare * total);
+    }
+    // The rays between two different one-sided surfaces, each with its weight (the area it stands for).
+    struct Link {
+      int from, to;       // surfaces
+      double weight;
+      bool leaves_front, arrives_front;  // as oriented after the first step
+    };
+    std::vector<Link> links;
+    for (int k = 0; k < nf; ++k) {
+      const int c = C.comp[k];
+      if (s.materials[s.faces[k].material].two_sided) continue;
+      const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
+      for (const Ray& r : per_face[static_cast<size_t>(k)].cast) {
+        const int d = C.comp[r.hit];
+        if (d == c || (decided[c] && decided[d]) || s.materials[s.faces[r.hit].material].two_sided) continue;
+        links.push_back({c, d, area, r.from_front != bool(surface_flip[c]), r.hit_front != bool(flip[r.hit] ^ surface_flip[d])});
+      }
+    }
+    for (bool changed = true; changed;) {
+      changed = false;
+      // Per undecided surface and side (0 front, 1 back): weight of consistent and inconsistent links to decided
+      // surfaces, and their rays.
+      std::vector<std::array<double, 2>> agree(nc, {0, 0}), disagree(nc, {0, 0});
+      std::vector<std::array<int, 2>> agreeing(nc, {0, 0});
+      std::vector<int> count(nc, 0);
+      for (const Link& l : links) {
+        if (decided[l.from] == decided[l.to]) continue;
+        const bool out = !decided[l.from];
+        const int u = out ? l.from : l.to, d = out ? l.to : l.from;
+        const bool d_front = (out ? l.arrives_front : l.leaves_front) != bool(coupled_flip[d]);
+        const bool u_front = out ? l.leaves_front : l.arrives_front;
+        const int side = u_front ? 0 : 1;
+        if (u_front == d_front) {
+          agree[u][side] += l.weight;
+          ++agreeing[u][side];
+        } else {
+          disagree[u][side] += l.weight;
+        }
+        ++count[u];
+      }
+      for (int c = 0; c < nc; ++c) {
+        if (decided[c] || count[c] < kMinBackRays) continue;
+        const double yes = agree[c][0] + agree[c][1], no = disagree[c][0] + disagree[c][1];
+        // A side whose links to decided surfaces are mostly consistent vouches for the file's winding (a block
+        // wound inward around an object seen from its front; a light panel whose front sees the room).
+        bool vouched = false;
+        for (int side = 0; side < 2; ++side)
+          vouched = vouched || (agreeing[c][side] >= kMinBackRays && agree[c][side] > disagree[c][side]);
+        if (no >= kBackShare * (yes + no) && !vouched) {
+          coupled_flip[c] = 1;
+          ++coupled;
+          coupled_faces += static_cast<long>(C.members[c].size());
+          for (int f : C.members[c]) coupled_ids.push_back(origin_of(s, f));
+        } else if (yes < kBackShare * (yes + no)) {
+          continue;  // undecided still
+        }
+        decided[c] = 1;  // counts from the next round on (this round's votes are in)
+        changed = true;
+      }
+    }
+    for (int c = 0; c < nc; ++c) surface_flip[c] ^= coupled_flip[c];
+  }
+
   // Apply: every flipped face counted and named.
   long flipped = 0;
   std::vector<int> flipped_ids;
@@ -243,7 +415,7 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
     report.counts["faces_reoriented"] += flipped;
     report.warnings.push_back(
         plural(flipped, "face was", "faces were") + " reoriented (to agree with the majority of their connected "
-        "surface" + std::string(surfaces > 0 ? ", or with their whole surface" : "") + "): input face" +
+        "surface" + std::string(surfaces + coupled > 0 ? ", or with their whole surface" : "") + "): input face" +
         (flipped_ids.size() == 1 ? " " : "s ") + id_list(flipped_ids));
   }
   if (surfaces > 0) {
@@ -255,6 +427,13 @@ void orient(PolygonSoup& s, Orientation mode, Report& report) {
                     ") because the rest of the scene sees its back (--orient consistent or file keeps the file's "
                     "winding): " + list);
   }
+
+  if (coupled > 0)
+    report.warn("surfaces_flipped", coupled,
+                plural(coupled, "surface was", "surfaces were") + " turned round (" + plural(coupled_faces, "face", "faces") +
+                    ") because the surfaces whose side is clear see its back and it sees theirs "
+                    "(--orient consistent or file keeps the file's winding): input face" +
+                    (coupled_ids.size() == 1 ? " " : "s ") + id_list(coupled_ids));
 
   // Hint: one-sided faces whose back reaches front sides more often than their front does.
   std::vector<int> front_lit(nf, 0), back_lit(nf, 0);
