@@ -303,6 +303,43 @@ TEST(PrepareOrient, OpenBottomedBlockOnTheFloorWoundInwardIsTurnedRound) {
   }
 }
 
+TEST(PrepareOrient, MirroredModelsAreOrientedAsTheUprightOnes) {
+  // A bundled model mirrored (x -> -x, windings kept: every face inside out, as a handedness conversion exports
+  // it) must come out of preparation as the upright one does: same orientation of every input face (mirrored
+  // back), same pieces removed as hidden. The Cornell box's blocks have no bottom (their inner side's rays reach the
+  // floor under them); the floor plan's walls, floors and furniture are meshed face by face, a thin wall being
+  // two surfaces facing each other's backs (their sides are decided by the surfaces they see, the second step).
+  // Emitters keep their side as given: a light 2 cm below a ceiling and facing it is a valid cove light, which no
+  // ray can tell from one facing down (both sides see the room).
+  for (const char* name : {"cornell_box.obj", "floorplan.obj"}) {
+    const PolygonSoup upright_in = io::read_obj(std::string(LAMBERT_SOURCE_DIR) + "/examples/" + name);
+    PolygonSoup mirrored_in = upright_in;
+    for (Vec3& p : mirrored_in.positions) p.x() = -p.x();
+    for (SoupFace& f : mirrored_in.faces)
+      if (mirrored_in.materials[f.material].emission.maxCoeff() > 0) std::reverse(f.vertices.begin(), f.vertices.end());
+    Report ru, rm;
+    const PolygonSoup upright = prepare(upright_in, {}, ru), mirrored = prepare(mirrored_in, {}, rm);
+    EXPECT_EQ(count(ru, "faces_reoriented"), 0) << name << all_warnings(ru);
+    EXPECT_GT(count(rm, "faces_reoriented"), 0) << name << all_warnings(rm);
+    std::map<int, Vec3> nu, nm;  // per input face: the sum of its pieces' Newell normals
+    for (const SoupFace& f : upright.faces)
+      nu.try_emplace(f.origin, Vec3::Zero()).first->second += newell_normal(corners(upright, f));
+    for (const SoupFace& f : mirrored.faces) {
+      Vec3 n = newell_normal(corners(mirrored, f));
+      n.x() = -n.x();
+      nm.try_emplace(f.origin, Vec3::Zero()).first->second += n;  // mirrored back: (Ma) x (Mb) = -M (a x b), the turn the repair made undoes the minus
+    }
+    ASSERT_EQ(nu.size(), nm.size()) << name;
+    int opposite = 0;
+    for (const auto& [origin, n] : nu)
+      if (!(n.dot(nm[origin]) > 0) && ++opposite <= 5)
+        ADD_FAILURE() << name << ": input face " << origin << " faces the other way mirrored" << all_warnings(rm);
+    EXPECT_EQ(opposite, 0) << name;
+    EXPECT_EQ(count(rm, "hidden_fragments_removed"), count(ru, "hidden_fragments_removed")) << name << all_warnings(rm);
+    EXPECT_EQ(mirrored.faces.size(), upright.faces.size()) << name;
+  }
+}
+
 TEST(PrepareOrient, OpenBoxKeepsMajorityOrientation) {
   // Unit box without its top (+y, index 3): 5 faces. Flip 2 of them, then 3 of them.
   auto box = shapes::box(Vec3::Zero(), Vec3::Ones(), 1, true);

@@ -24,7 +24,21 @@
 //                 A surface is flipped when at least 8 rays from its back reach other surfaces and
 //                 its back gets >= 80 % of the weight (a room wound outward around its furniture; a
 //                 block wound inward in a room). A surface nobody else sees (an empty closed room)
-//                 keeps the file's winding; a closed object wound outward is never flipped.
+//                 keeps the file's winding; a closed object wound outward is never flipped. A ray
+//                 that leaves through an opening of its own surface and ends, in the opening's
+//                 plane, on what closes it (a block without a bottom on the floor; a counter open
+//                 at the bottom and back against walls) stayed inside and counts for nothing.
+//                 Then the surfaces left undecided (both sides see the scene: wall faces meshed on
+//                 their own, a thin wall's two faces seeing each other's backs; furniture faces)
+//                 take their side from the decided ones, in rounds: a ray between two surfaces is
+//                 consistent when it leaves a front and arrives at a front, or a back at a back; an
+//                 undecided surface whose rays to and from decided ones are >= 80 % inconsistent
+//                 (by weight, at least 8) and none of whose sides sees decided ones mostly
+//                 consistently is flipped; >= 80 % consistent, kept; decided either way from the next
+//                 round. A valid model's rays are consistent; a light panel whose back faces the
+//                 ceiling has a consistent side and keeps its winding. A model turned inside out
+//                 (mirrored by a handedness conversion) comes out as the upright one (emitters
+//                 facing a nearby ceiling or wall keep the file's side: no ray tells them apart).
 //     "faces_reoriented" (faces flipped, all modes), "surfaces_flipped" (whole surfaces flipped by
 //     visibility, each named with its input faces and evidence), "non_orientable_components".
 //     Hint (all modes, when repair runs): "faces_seen_from_behind" counts one-sided faces whose back
