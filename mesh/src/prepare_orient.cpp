@@ -324,10 +324,10 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
   // and arrives at a front, or leaves a back and arrives at a back. An undecided surface whose rays to and from
   // decided surfaces are inconsistent with 80 % of their weight (at least 8 rays) is turned round; consistent with
   // 80 %, it is kept; either way it is decided from the next round on (rounds until nothing changes: the same
-  // result in any order). In a valid model the rays are consistent and nothing turns; one that is not (a light
-  // panel whose back faces the ceiling, a picture on a wall) has both kinds and keeps the file's winding. A model
-  // inside out (a mirrored export, walls and furniture meshed face by face) turns from the surfaces whose side
-  // the first step decided.
+  // result in any order). In a valid model the rays are consistent and nothing turns; a surface with a side that
+  // sees decided surfaces mostly consistently (a light panel whose back faces the ceiling: its front sees the room)
+  // keeps the file's winding. A model inside out (a mirrored export, walls and furniture meshed face by face) turns
+  // from the surfaces whose side the first step decided.
   std::vector<int> coupled_flip(nc, 0);
   long coupled = 0, coupled_faces = 0;
   std::vector<int> coupled_ids;
@@ -431,8 +431,8 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
   if (coupled > 0)
     report.warn("surfaces_flipped", coupled,
                 plural(coupled, "surface was", "surfaces were") + " turned round (" + plural(coupled_faces, "face", "faces") +
-                    ") because the surfaces whose side is clear see its back and it sees theirs "
-                    "(--orient consistent or file keeps the file's winding): input face" +
+                    ") because the surfaces around, whose side the rays made clear, see their backs and are seen from "
+                    "behind by them (--orient consistent or file keeps the file's winding): input face" +
                     (coupled_ids.size() == 1 ? " " : "s ") + id_list(coupled_ids));
 
   // Hint: one-sided faces whose back reaches front sides more often than their front does.
