@@ -321,6 +321,21 @@ std::vector<Finding> assess(const Run& r) {
       fmt::format("{} form factors outside [0, 1] beyond their error bound (never clamped): the form factors are wrong",
                   outside),
       true);
+  // The sky lights a model from behind when, of its near-horizontal patches with nothing in front of them, more
+  // than twice as much faces the earth as faces the sky: a model inside out (a mirrored export) that no other
+  // surface could turn round (one connected surface, as a city of buildings joined to their ground), or --up
+  // pointing down. (A building without ground has about as much floor underside as roof.)
+  if (r.daylight && r.daylight->sky_active()) {
+    const daylight::PatchSkyStats& st = r.daylight->patch_stats();
+    if (st.area_facing_down > 2 * st.area_facing_up)
+      add("sky_from_behind", st.area_facing_down,
+          fmt::format("the sky lights the model from behind: {:.4g} m^2 of near-horizontal patches face the earth with "
+                      "nothing in front of them, {:.4g} m^2 face the sky so (faces are one-sided: ground and roofs "
+                      "facing the earth get no sky). Is the model inside out (a mirrored export; reverse its "
+                      "winding) or --up wrong?",
+                      st.area_facing_down, st.area_facing_up),
+          false);
+  }
   if (recip_ratio > 1)
     add("reciprocity_check", recip_ratio,
         fmt::format("reciprocity check: {} pairs integrated independently in the reverse direction differ by {:.3g}x "

@@ -21,6 +21,7 @@ class DaylightRun {
  public:
   explicit DaylightRun(const CommonOptions& o);  // parses the options (InputError)
   bool sky_active() const { return has_sky_; }
+  const daylight::PatchSkyStats& patch_stats() const { return patch_stats_; }  // after emission()
   bool sensors_requested() const { return !o_.sensors.empty() || o_.work_plane > 0; }
   bool active() const { return has_sky_ || sensors_requested() || photometric_; }
 

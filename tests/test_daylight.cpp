@@ -793,6 +793,34 @@ TEST_F(Daylight, PatchSkyIrradianceIsExactAtCentroids) {
   EXPECT_EQ(seen, 2);
 }
 
+// A model inside out that orientation cannot turn (one surface, nobody else to see it: here a lone ground plane
+// facing the earth; a city of buildings joined edge to edge to their ground, mirrored, in the real case) gets no
+// sky on its ground: the run says so (a warning, not an error: the result is what the file says). The same ground
+// facing the sky, the test room (its ceiling faces the earth but sees the floor), and --up pointing down say
+// nothing, then do.
+TEST_F(Daylight, GroundFacingTheEarthIsReportedAsSkyFromBehind) {
+  write("ground.mtl", "newmtl ground\nKd 0.3\n");
+  const std::string down = write("down.obj", "mtllib ground.mtl\nusemtl ground\nv -10 0 -10\nv 10 0 -10\nv 10 0 10\n"
+                                             "v -10 0 10\nf 1 2 3 4\n");  // normal -y
+  const std::string up = write("up.obj", "mtllib ground.mtl\nusemtl ground\nv -10 0 -10\nv 10 0 -10\nv 10 0 10\n"
+                                         "v -10 0 10\nf 4 3 2 1\n");  // normal +y
+  const std::string warning = "the sky lights the model from behind";
+  const auto d = run_solve(down + " -o " + path("d.vtu") + " --sky uniform");
+  EXPECT_EQ(d.status, 0) << d.output;
+  EXPECT_NE(d.output.find(warning), std::string::npos) << d.output;
+  EXPECT_NE(d.output.find("400 m^2"), std::string::npos) << d.output;
+  const auto u = run_solve(up + " -o " + path("u.vtu") + " --sky uniform");
+  EXPECT_EQ(u.status, 0) << u.output;
+  EXPECT_EQ(u.output.find(warning), std::string::npos) << u.output;
+  const auto flipped = run_solve(up + " -o " + path("f.vtu") + " --sky uniform --up -y");
+  EXPECT_NE(flipped.output.find(warning), std::string::npos) << flipped.output;
+  write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0\n");
+  const std::string room = write("room.obj", room_obj(false, false));
+  const auto r = run_solve(room + " -o " + path("r.vtu") + " --sky uniform");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output.find(warning), std::string::npos) << r.output;
+}
+
 // Bad daylight options: exit 1 with a message naming the option, before any work.
 TEST_F(Daylight, BadDaylightOptionsExitOne) {
   write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0\n");

@@ -610,6 +610,7 @@ std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sk
   const int N = g.size();
   LAMBERT_CHECK(&gather.geometry() == &g, "patch_sky_irradiance: the Gatherer is not over this scene's geometry");
   std::vector<double> E(size_t(N), 0.0);
+  std::vector<double> open(size_t(N), 0.0);  // the cosine-weighted share of the front hemisphere that sees no patch
   std::atomic<long long> points{0}, done{0};
   // A patch whose front lies inside a closed surface (a shut room; a room of a glazed building: the panes close it)
   // sees nothing at infinity: its sky is 0, exactly, without clipping. The clipping alone would leave the grid's
@@ -626,7 +627,9 @@ std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sk
       }
       ++points;
       if (likely_visible) likely_visible(i, likely);
-      E[size_t(i)] = irradiance(sky, gather.open(sky_point(g, i), g.normal[i], sky.up, i, likely));
+      const Moments m = gather.open(sky_point(g, i), g.normal[i], sky.up, i, likely);
+      E[size_t(i)] = irradiance(sky, m);
+      open[size_t(i)] = (m.cos_above + m.cos_below) / kPi;
       if (progress) progress(double(++done) / double(N));
     }
   });
@@ -641,6 +644,11 @@ std::vector<double> patch_sky_irradiance(const mesh::Scene& scene, const Sky& sk
       e = 0;
     }
     if (e > 1e-6 * sky.horizontal_irradiance()) ++st.patches_lit;
+    if (open[size_t(i)] > 0.5) {
+      const double c = g.normal[i].dot(sky.up);
+      if (c > 0.5) st.area_facing_up += g.area[i];
+      if (c < -0.5) st.area_facing_down += g.area[i];
+    }
     if ((scene.materials[scene.material[i]].transmittance > 0).any()) ++st.glazing_patches;
   }
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

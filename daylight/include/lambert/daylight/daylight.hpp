@@ -62,6 +62,10 @@ struct PatchSkyStats {
   double most_negative = 0;     // the most negative value before that (same unit as the sky's irradiance)
   int glazing_patches = 0;
   int enclosed = 0;             // patches whose front lies inside a closed surface: no sky, nothing clipped
+  // Area (m^2) of the patches whose front sees no patch in more than half its (cosine-weighted) directions, facing
+  // the sky (normal . up > 0.5: ground, roofs with nothing above) and facing the earth (< -0.5: with nothing below;
+  // a ceiling sees its floor). Much more of the second is the mark of a model inside out (a mirrored export).
+  double area_facing_up = 0, area_facing_down = 0;
   double seconds = 0;
 };
 
