@@ -8,6 +8,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "lambert/io/readers.hpp"
@@ -337,6 +338,30 @@ TEST(PrepareOrient, MirroredModelsAreOrientedAsTheUprightOnes) {
     EXPECT_EQ(opposite, 0) << name;
     EXPECT_EQ(count(rm, "hidden_fragments_removed"), count(ru, "hidden_fragments_removed")) << name << all_warnings(rm);
     EXPECT_EQ(mirrored.faces.size(), upright.faces.size()) << name;
+  }
+}
+
+TEST(PrepareOrient, LightFacingTheCeilingCloseByIsReported) {
+  // Room [0,4]^3 wound inward and a 1 m^2 light 2 cm below its ceiling: facing down it lights the room; facing up
+  // its light stays in the 2 cm gap (a mirrored export). Both sides see the scene, so it is not turned (a cove
+  // light is valid) but said: all of its front rays end within 0.1 m (a tenth of its size) over it, none of its
+  // back's. Facing down, and a light 1 m below the ceiling facing up (a valid uplight), say nothing.
+  for (const auto& [height, up, reported] : {std::tuple{3.98, true, 1}, {3.98, false, 0}, {3.0, true, 0}}) {
+    shapes::Polygons polys = shapes::box(Vec3::Zero(), Vec3::Constant(4), 1, true);
+    std::vector<Vec3> light{Vec3(1.5, height, 1.5), Vec3(2.5, height, 1.5), Vec3(2.5, height, 2.5), Vec3(1.5, height, 2.5)};
+    if (up) std::reverse(light.begin(), light.end());  // as listed, counter-clockwise seen from below: facing down
+    polys.push_back(light);
+    PolygonSoup s = soup_from(polys);
+    Material lamp;
+    lamp.name = "lamp";
+    lamp.emission = RGB::Constant(10);
+    s.materials.push_back(lamp);
+    s.faces.back().material = static_cast<int>(s.materials.size()) - 1;
+    Report r;
+    prepare(s, {}, r);
+    EXPECT_EQ(count(r, "emitters_facing_a_near_surface"), reported)
+        << "light at " << height << (up ? " facing up" : " facing down") << all_warnings(r);
+    EXPECT_EQ(count(r, "faces_reoriented"), 0) << all_warnings(r);
   }
 }
 

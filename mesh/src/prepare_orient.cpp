@@ -34,6 +34,7 @@ constexpr int kRaysPerSide = 8;         // per face and side, at least ...
 constexpr int kRaysPerSurface = 1024;   // ... and about this many per surface and side (at most 128 per face)
 constexpr int kMinBackRays = 8;         // strong evidence: at least this many rays from the back ...
 constexpr double kBackShare = 0.8;      // ... and this share of the area-weighted hits
+constexpr double kNearGap = 0.1;        // an emitter's "near" surface: closer than this times sqrt(its area)
 
 struct Components {
   std::vector<int> comp, parity;  // per face: component, flip relative to the component's first face
@@ -256,6 +257,7 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
   struct FaceRays {
     std::vector<Ray> cast;
     int evidence[2] = {0, 0};
+    int traced[2] = {0, 0}, near[2] = {0, 0};  // emitters: rays per side, and those ending within kNearGap of it
   };
   std::vector<FaceRays> per_face(static_cast<size_t>(nf));
   tbb::parallel_for(tbb::blocked_range<int>(0, nf, 64), [&](const tbb::blocked_range<int>& range) {
@@ -264,12 +266,18 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
       FaceRays& out = per_face[static_cast<size_t>(k)];
       std::mt19937_64 rng(0x9E3779B97F4A7C15ull ^ std::uint64_t(k) * 0xBF58476D1CE4E5B9ull);
       const Vec3 n = rays.normal(k) * (flip[k] ? -1.0 : 1.0);
+      const bool emitter = !s.materials[s.faces[k].material].two_sided && s.materials[s.faces[k].material].emission.maxCoeff() > 0;
+      const double near_gap = emitter ? kNearGap * std::sqrt(0.5 * newell_normal(corners(s, k)).norm()) : 0.0;
       for (int r = 0; r < rays_per_side[k]; ++r) {
         const Vec3 o = rays.sample(k, rng);
         const Vec3 d = cosine_direction(n, rng);
         for (int side = 0; side < 2; ++side) {
           const Vec3 dir = side == 0 ? d : Vec3(-d);
           auto h = rays.first(o, dir, [k](int f) { return f == k; });
+          if (emitter) {
+            ++out.traced[side];
+            out.near[side] += h.face >= 0 && h.t * std::abs(dir.dot(n)) < near_gap;  // the hit's height over the face
+          }
           if (h.face < 0) continue;
           if (C.comp[h.face] != C.comp[k]) {
             // A face of its own surface at the same distance (a block's bottom on the floor) is hit first:
@@ -458,6 +466,28 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
                     " seen by the scene mostly from behind (they stay black there; mark them two-sided if they "
                     "are thin surfaces meant to reflect on both sides): input face" +
                     (behind.size() == 1 ? " " : "s ") + id_list(behind));
+
+  // Hint: emitters whose front is covered at close range (>= 90 % of its rays end at a height over the face below a
+  // tenth of its size) while their back is not (<= 10 %): a light below a ceiling facing it, its light kept in the
+  // gap. No ray tells that from a valid cove light (both sides see the scene), so it is said, not turned.
+  std::vector<int> facing_near;
+  for (int k = 0; k < nf; ++k) {
+    const FaceRays& fr = per_face[static_cast<size_t>(k)];
+    const int front = surface_flip[C.comp[k]] ? 1 : 0, back = 1 - front;  // sides as finally oriented
+    if (fr.traced[front] >= kMinBackRays && fr.traced[back] >= kMinBackRays && fr.near[front] >= 0.9 * fr.traced[front] &&
+        fr.near[back] <= 0.1 * fr.traced[back])
+      facing_near.push_back(origin_of(s, k));
+  }
+  report.counts["emitters_facing_a_near_surface"] += 0;
+  if (!facing_near.empty())
+    report.warn("emitters_facing_a_near_surface", static_cast<long>(facing_near.size()),
+                plural(static_cast<long>(facing_near.size()),
+                       "emitting face faces a surface closer than a tenth of its size while its back sees the scene: its",
+                       "emitting faces face a surface closer than a tenth of their size while their backs see the scene: "
+                       "their") +
+                    " light stays in the gap (a light below a ceiling wound to face it? reverse it in the file): input "
+                    "face" +
+                    (facing_near.size() == 1 ? " " : "s ") + id_list(facing_near));
 }
 
 }  // namespace detail

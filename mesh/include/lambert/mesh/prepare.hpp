@@ -43,6 +43,8 @@
 //     visibility, each named with its input faces and evidence), "non_orientable_components".
 //     Hint (all modes, when repair runs): "faces_seen_from_behind" counts one-sided faces whose back
 //     reaches other faces' front sides with more rays than their front does (mark them two-sided?).
+//     "emitters_facing_a_near_surface": one-sided emitters whose front rays (>= 90 %) end within a tenth of
+//     the face's size over it and whose back rays (<= 10 %) do not (a light below a ceiling facing it).
 // Detection (reported, never changed; also without repair, on the raw faces, since it changes
 // nothing and tells where light can leak):
 //  4. faces whose interiors cross, or coincide facing the same way (a duplicate, a decal); not faces
