@@ -289,6 +289,8 @@ nlohmann::json DaylightRun::stats() const {
                 {"points_clipped", patch_stats_.points},
                 {"negative_set_to_zero", patch_stats_.negative_set_to_zero},
                 {"most_negative", patch_stats_.most_negative * scale()},
+                {"open_area_facing_up", patch_stats_.area_facing_up},
+                {"open_area_facing_down", patch_stats_.area_facing_down},
                 {"seconds", sky_seconds_}};
   }
   if (!results_.empty()) {
