@@ -27,14 +27,6 @@ struct Sample {
   double area;
 };
 
-// splitmix64: the jitter below, from the indices alone (the same samples at any position and thread count).
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
 // Stratified points on a patch: each triangle of its triangulation split into s^2 congruent sub-triangles
 // (s the smallest with 2-ish x s^2 x triangles >= count), one point per sub-triangle with its area, jittered inside
 // it (uniform in a copy shrunk by 0.9 about its centroid, seeded by patch, triangle and index). Not the centroids:
@@ -50,12 +42,12 @@ void patch_samples(const mesh::PatchGeometry& g, int p, int count, std::vector<S
     const Vec3 &A = g.points[g.triangles[t][0]], &B = g.points[g.triangles[t][1]], &C = g.points[g.triangles[t][2]];
     const double area = 0.5 * (B - A).cross(C - A).norm() / double(s * s);
     const Vec3 u = (B - A) / double(s), v = (C - A) / double(s);
-    std::uint64_t seed = mix(std::uint64_t(p) * 0x100000001ull + std::uint64_t(t));
+    std::uint64_t seed = splitmix64(std::uint64_t(p) * 0x100000001ull + std::uint64_t(t));
     // A point of the unit triangle (a, b >= 0, a + b <= 1), uniform in its copy shrunk by 0.9 about (1/3, 1/3).
     auto jitter = [&](double& a, double& b) {
-      seed = mix(seed);
+      seed = splitmix64(seed);
       a = double(seed >> 11) * 0x1.0p-53;
-      seed = mix(seed);
+      seed = splitmix64(seed);
       b = double(seed >> 11) * 0x1.0p-53;
       if (a + b > 1) a = 1 - a, b = 1 - b;
       a = 1.0 / 3 + 0.9 * (a - 1.0 / 3);

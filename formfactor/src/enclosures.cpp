@@ -111,13 +111,6 @@ int polygon_side(std::span<const Vec3> poly, const Vec3& n, const Vec3& y, doubl
   return inside ? 1 : -1;
 }
 
-std::uint64_t splitmix(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
 struct UnionFind {
   std::vector<int> up;
   explicit UnionFind(int n) : up(static_cast<size_t>(n)) { std::iota(up.begin(), up.end(), 0); }
@@ -463,7 +456,7 @@ Enclosures find_enclosures(const mesh::PatchGeometry& g, double eps) {
         if (loc.rel.empty()) continue;
         bool decided = false;
         for (int attempt = 0; attempt < 8 && !decided; ++attempt) {
-          const std::uint64_t s = splitmix(std::uint64_t(p) * 8 + std::uint64_t(attempt));
+          const std::uint64_t s = splitmix64(std::uint64_t(p) * 8 + std::uint64_t(attempt));
           Vec3 v(double(s & 0xFFFFF), double((s >> 20) & 0xFFFFF), double((s >> 40) & 0xFFFFF));
           v = v / double(0xFFFFF) * 2 - Vec3::Ones();
           if (!(v.norm() > 0.1)) continue;

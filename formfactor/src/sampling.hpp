@@ -9,7 +9,7 @@
 
 namespace lambert::formfactor::detail {
 
-std::uint64_t mix(std::uint64_t x);  // splitmix64
+inline std::uint64_t mix(std::uint64_t x) { return splitmix64(x); }
 
 // n = k1 k2 stratified points on patch p, uniform in area: a k1 x k2 grid of equal-area strata, jittered inside
 // each stratum, so no point lies on the patch boundary. Parallelograms through their bilinear map; triangles,

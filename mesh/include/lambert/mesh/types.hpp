@@ -2,6 +2,7 @@
 // Basic value types shared by every lambert module.
 #include <Eigen/Core>
 #include <Eigen/Geometry>  // cross products
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -9,6 +10,15 @@ namespace lambert {
 
 using Vec3 = Eigen::Vector3d;  // positions in metres, or unit directions
 using RGB = Eigen::Array3d;    // one value per colour channel (R, G, B)
+
+// splitmix64 (Steele, Lea, Flood 2014): a 64-bit hash of an index, for sample jitter and seeds derived from indices
+// alone (the same samples at any position and thread count).
+inline std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
 
 // Per-patch colour field, one row per patch, columns R, G, B.
 using ColorField = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
