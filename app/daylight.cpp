@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -16,11 +17,18 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDefaultHorizontalLux = 10000;  // default sky: E_h = 10,000 lx (the CIE overcast design value)
 
-std::string sensors_vtu_path(const std::string& csv) {
+// The sensors' .vtu: OUT.vtu beside --sensors-out OUT.csv (OUT.csv.vtu for another extension), or OUT.sensors.vtu
+// when OUT.vtu is the -o output itself (`-o city.vtu --sensors-out city.csv`, the natural pair of names).
+std::string sensors_vtu_path(const CommonOptions& o) {
+  const std::string& csv = o.sensors_out;
   const std::string ext = ".csv";
-  if (csv.size() > ext.size() && csv.compare(csv.size() - ext.size(), ext.size(), ext) == 0)
-    return csv.substr(0, csv.size() - ext.size()) + ".vtu";
-  return csv + ".vtu";
+  const bool dot_csv = csv.size() > ext.size() && csv.compare(csv.size() - ext.size(), ext.size(), ext) == 0;
+  const std::string stem = dot_csv ? csv.substr(0, csv.size() - ext.size()) : csv;
+  namespace fs = std::filesystem;
+  std::error_code e1, e2;
+  const fs::path beside = fs::weakly_canonical(stem + ".vtu", e1), output = fs::weakly_canonical(o.output, e2);
+  if (!o.output.empty() && (stem + ".vtu" == o.output || (!e1 && !e2 && beside == output))) return stem + ".sensors.vtu";
+  return stem + ".vtu";
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -34,8 +42,7 @@ void declare_daylight_files(const CommonOptions& o) {
   if (!o.sensors.empty()) outputs().add_input(o.sensors);
   if (!o.sensors_out.empty()) {
     outputs().add_output(o.sensors_out, "--sensors-out");
-    outputs().add_output(sensors_vtu_path(o.sensors_out),
-                         "--sensors-out points (the .vtu written beside '" + o.sensors_out + "', same name)");
+    outputs().add_output(sensors_vtu_path(o), "--sensors-out points (the .vtu written beside '" + o.sensors_out + "')");
   }
 }
 
@@ -171,7 +178,7 @@ void DaylightRun::write_outputs() const {
     }
     os << buf;
   });
-  write_output(sensors_vtu_path(o_.sensors_out), [&](std::ostream& os) {
+  write_output(sensors_vtu_path(o_), [&](std::ostream& os) {
     std::vector<Vec3> pts;
     io::ExtraArray ill{"illuminance", 1, {}, false}, df{"daylight_factor", 1, {}, false};
     io::ExtraArray irr{"irradiance", 3, {}, false}, sky{"sky_component", 1, {}, false}, nrm{"normal", 3, {}, false};
@@ -266,7 +273,7 @@ std::string DaylightRun::summary() const {
         s += '\n';
       }
     if (!o_.sensors_out.empty())
-      s += fmt::format("  sensors out  {} and {}\n", o_.sensors_out, sensors_vtu_path(o_.sensors_out));
+      s += fmt::format("  sensors out  {} and {}\n", o_.sensors_out, sensors_vtu_path(o_));
   }
   return s;
 }
@@ -310,7 +317,7 @@ nlohmann::json DaylightRun::stats() const {
       s["daylight_factor_min"] = d.min;
       s["daylight_factor_max"] = d.max;
     }
-    if (!o_.sensors_out.empty()) s["output"] = {o_.sensors_out, sensors_vtu_path(o_.sensors_out)};
+    if (!o_.sensors_out.empty()) s["output"] = {o_.sensors_out, sensors_vtu_path(o_)};
     json by_room = json::array();
     for (const Room& r : rooms(sensor_room_, E, df)) {
       const Figures e = figures(r.E);

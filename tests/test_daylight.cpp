@@ -20,6 +20,7 @@
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
 #include <vtkNew.h>
+#include <vtkPointData.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
@@ -836,10 +837,11 @@ TEST_F(Daylight, BadDaylightOptionsExitOne) {
                         Case{"--sensors-out " + path("o.csv"), "--sensors-out needs sensors"},
                         Case{"--sky uniform --ground-reflectance 1.5", "--ground-reflectance"},
                         Case{"--units lumens", "--units"},
-                        // -o r.vtu with --sensors-out r.csv: the sensors' points would go to r.vtu too; the message says
-                        // where that file comes from.
-                        Case{"--sky uniform --work-plane 0.8 --grid 0.5 --sensors-out " + path("r.csv"),
-                             "the .vtu written beside '" + path("r.csv") + "'"}}) {
+                        // The sensors' points beside --sensors-out s.csv would go to s.vtu, also the --stats output: the
+                        // message says where that file comes from.
+                        Case{"--sky uniform --work-plane 0.8 --grid 0.5 --stats " + path("s.vtu") + " --sensors-out " +
+                                 path("s.csv"),
+                             "the .vtu written beside '" + path("s.csv") + "'"}}) {
     const auto r = run_solve(obj + out + " " + c.args);
     EXPECT_EQ(r.status, 1) << c.args << ": " << r.output;
     EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.args << ": expected '" << c.expect << "' in " << r.output;
@@ -854,6 +856,28 @@ TEST_F(Daylight, BadDaylightOptionsExitOne) {
   const auto r2 = run_solve(glazed + out + " --sky uniform");
   EXPECT_EQ(r2.status, 1) << r2.output;
   EXPECT_NE(r2.output.find("room.mtl:5"), std::string::npos) << r2.output;
+}
+
+// `-o r.vtu --sensors-out r.csv`, the natural pair of names: the sensors' points cannot go to r.vtu (the scene goes
+// there), so they go to r.sensors.vtu, named in the summary; -o keeps the scene's cells.
+TEST_F(Daylight, SensorPointsBesideAnOutputOfTheSameNameAreNamedApart) {
+  write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0\n");
+  const std::string obj = write("room.obj", room_obj(false, false));
+  const auto r = run_solve(obj + " -o " + path("r.vtu") + " --sky uniform --work-plane 0.8 --grid 0.5 --sensors-out " +
+                           path("r.csv"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("sensors out  " + path("r.csv") + " and " + path("r.sensors.vtu")), std::string::npos)
+      << r.output;
+  auto read = [](const std::string& file) {
+    vtkNew<vtkXMLUnstructuredGridReader> reader;
+    reader->SetFileName(file.c_str());
+    reader->Update();
+    return std::make_pair(reader->GetOutput()->GetCellData()->GetArray("radiance") != nullptr,
+                          reader->GetOutput()->GetPointData()->GetArray("illuminance") != nullptr);
+  };
+  EXPECT_EQ(read(path("r.vtu")), std::make_pair(true, false)) << "-o holds the scene";
+  EXPECT_EQ(read(path("r.sensors.vtu")), std::make_pair(false, true)) << "the sensors' points";
+  EXPECT_FALSE(read_rows(path("r.csv")).empty());
 }
 
 // Bad sensor files: exit 1, the message names the file and line.
