@@ -135,16 +135,24 @@ struct Openings {
   bool enclose(const PolygonSoup& s, const Vec3& x, const Vec3& n, double tol) const {
     if (edges.size() < 2 || !box.contains(x)) return false;
     auto in_plane = [&](int v) { return std::abs(n.dot(s.positions[v] - x)) <= tol; };
-    std::vector<char> used(edges.size(), 0);
-    std::vector<int> path;  // edges counted
+    thread_local std::vector<char> used;
+    thread_local std::vector<int> path;  // edges counted
+    used.assign(edges.size(), 0);
+    path.clear();
     for (size_t e = 0; e < edges.size(); ++e)
       if (in_plane(edges[e][0]) && in_plane(edges[e][1])) used[e] = 1, path.push_back(static_cast<int>(e));
     if (path.size() < 2) return false;
-    const size_t planar = path.size();
-    // From each vertex in the plane, along open edges out of it, until a vertex in the plane again.
-    for (size_t i = 0; i < planar; ++i)
-      for (int v0 : edges[path[i]]) {
-        int v = v0;
+    // The ends of chains in the plane (vertices on an odd number of its edges there; none when the edges in the plane
+    // close, as a block's footprint does): from each, along open edges out of the plane until it comes back.
+    thread_local std::vector<int> ends;
+    ends.clear();
+    for (int e : path) ends.insert(ends.end(), {edges[e][0], edges[e][1]});
+    std::sort(ends.begin(), ends.end());
+    for (size_t i = 0; i < ends.size();) {
+      size_t j = i;
+      while (j < ends.size() && ends[j] == ends[i]) ++j;
+      if ((j - i) % 2 == 1) {
+        int v = ends[i];
         for (;;) {
           int next = -1;
           for (auto it = std::lower_bound(at.begin(), at.end(), std::make_pair(v, -1)); it != at.end() && it->first == v; ++it)
@@ -159,6 +167,8 @@ struct Openings {
           if (in_plane(v)) break;
         }
       }
+      i = j;
+    }
     const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized(), w = n.cross(u);
     bool odd = false;  // crossings of the ray from x along u (half-open in w: a vertex on the ray counts once)
     for (int e : path) {
