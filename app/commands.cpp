@@ -54,6 +54,11 @@ mesh::PolygonSoup read_input(const CommonOptions& o, PhaseTimer& timer) {
   mesh::PolygonSoup soup = io::read_soup(o.scene);
   if (!o.materials.empty()) io::apply_materials_json(soup, o.materials);
   declare_soup_inputs(soup);  // an MTL library is an input too: never an output
+  if (o.reverse_winding) {
+    // The first corner kept (as the orientation repair flips): face ids, lines and corner 0 unchanged.
+    for (mesh::SoupFace& f : soup.faces) std::reverse(f.vertices.begin() + 1, f.vertices.end());
+    say(o, fmt::format("lambert: note: --reverse-winding: the winding of all {} faces reversed as read", soup.faces.size()));
+  }
   return soup;
 }
 
@@ -331,8 +336,8 @@ std::vector<Finding> assess(const Run& r) {
       add("sky_from_behind", st.area_facing_down,
           fmt::format("the sky lights the model from behind: {:.4g} m^2 of near-horizontal patches face the earth with "
                       "nothing in front of them, {:.4g} m^2 face the sky so (faces are one-sided: ground and roofs "
-                      "facing the earth get no sky). Is the model inside out (a mirrored export; reverse its "
-                      "winding) or --up wrong?",
+                      "facing the earth get no sky). Is the model inside out (a mirrored export: --reverse-winding) "
+                      "or --up wrong?",
                       st.area_facing_down, st.area_facing_up),
           false);
   }

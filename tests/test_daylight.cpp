@@ -798,7 +798,7 @@ TEST_F(Daylight, PatchSkyIrradianceIsExactAtCentroids) {
 // facing the earth; a city of buildings joined edge to edge to their ground, mirrored, in the real case) gets no
 // sky on its ground: the run says so (a warning, not an error: the result is what the file says). The same ground
 // facing the sky, the test room (its ceiling faces the earth but sees the floor), and --up pointing down say
-// nothing, then do.
+// nothing, then do; --reverse-winding, as the message suggests, silences it.
 TEST_F(Daylight, GroundFacingTheEarthIsReportedAsSkyFromBehind) {
   write("ground.mtl", "newmtl ground\nKd 0.3\n");
   const std::string down = write("down.obj", "mtllib ground.mtl\nusemtl ground\nv -10 0 -10\nv 10 0 -10\nv 10 0 10\n"
@@ -815,6 +815,11 @@ TEST_F(Daylight, GroundFacingTheEarthIsReportedAsSkyFromBehind) {
   EXPECT_EQ(u.output.find(warning), std::string::npos) << u.output;
   const auto flipped = run_solve(up + " -o " + path("f.vtu") + " --sky uniform --up -y");
   EXPECT_NE(flipped.output.find(warning), std::string::npos) << flipped.output;
+  // What the finding suggests: --reverse-winding turns the ground facing the earth to face the sky.
+  const auto reversed = run_solve(down + " -o " + path("rev.vtu") + " --sky uniform --reverse-winding");
+  EXPECT_EQ(reversed.status, 0) << reversed.output;
+  EXPECT_EQ(reversed.output.find(warning), std::string::npos) << reversed.output;
+  EXPECT_NE(reversed.output.find("winding of all 1 faces reversed"), std::string::npos) << reversed.output;
   write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0\n");
   const std::string room = write("room.obj", room_obj(false, false));
   const auto r = run_solve(room + " -o " + path("r.vtu") + " --sky uniform");
