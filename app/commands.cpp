@@ -54,11 +54,6 @@ mesh::PolygonSoup read_input(const CommonOptions& o, PhaseTimer& timer) {
   mesh::PolygonSoup soup = io::read_soup(o.scene);
   if (!o.materials.empty()) io::apply_materials_json(soup, o.materials);
   declare_soup_inputs(soup);  // an MTL library is an input too: never an output
-  if (o.reverse_winding) {
-    // The first corner kept (as the orientation repair flips): face ids, lines and corner 0 unchanged.
-    for (mesh::SoupFace& f : soup.faces) std::reverse(f.vertices.begin() + 1, f.vertices.end());
-    say(o, fmt::format("lambert: note: --reverse-winding: the winding of all {} faces reversed as read", soup.faces.size()));
-  }
   return soup;
 }
 

@@ -19,7 +19,6 @@ struct CommonOptions {
   int threads = 0;  // 0 = all cores
   bool quiet = false;
   bool no_repair = false;      // --no-repair: prepare.repair = false (detection still runs)
-  bool reverse_winding = false;  // --reverse-winding: every face's corner order reversed as read (a model inside out)
   std::string orient = "visibility";  // --orient: prepare.orient = mesh::parse_orientation(orient)
   bool no_visibility = false;  // --no-visibility: ff.visibility = false
   std::string ff_rule = "adaptive";  // formfactor::parse_rule: adaptive | point | gauss1..gauss8

@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
                     "of the scene sees its back)")
         ->check(CLI::IsMember({"file", "consistent", "visibility"}))
         ->capture_default_str();
-    sub->add_flag("--reverse-winding", common.reverse_winding,
+    sub->add_flag("--reverse-winding", common.prepare.reverse_winding,
                   "Reverse every face's winding as read, before any repair: a model exported inside out (mirrored "
                   "by a handedness conversion) that is one connected surface, whose side no other surface tells");
     sub->add_option("--max-edge", common.prepare.max_edge,

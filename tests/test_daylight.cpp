@@ -819,7 +819,7 @@ TEST_F(Daylight, GroundFacingTheEarthIsReportedAsSkyFromBehind) {
   const auto reversed = run_solve(down + " -o " + path("rev.vtu") + " --sky uniform --reverse-winding");
   EXPECT_EQ(reversed.status, 0) << reversed.output;
   EXPECT_EQ(reversed.output.find(warning), std::string::npos) << reversed.output;
-  EXPECT_NE(reversed.output.find("winding of all 1 faces reversed"), std::string::npos) << reversed.output;
+  EXPECT_NE(reversed.output.find("the winding of all 1 face was reversed as asked"), std::string::npos) << reversed.output;
   write("room.mtl", "newmtl wall\nKd 0.5\nnewmtl glass\nKd 0\n");
   const std::string room = write("room.obj", room_obj(false, false));
   const auto r = run_solve(room + " -o " + path("r.vtu") + " --sky uniform");

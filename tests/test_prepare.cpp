@@ -341,6 +341,40 @@ TEST(PrepareOrient, MirroredModelsAreOrientedAsTheUprightOnes) {
   }
 }
 
+TEST(PrepareOrient, ReverseWindingTurnsAMirroredExportBackLightsIncluded) {
+  // The floor plan mirrored whole (lights too: they face the ceiling 2 cm away, which no ray can tell from a cove
+  // light). The repair turns all but the lights and says most of the model was inside out, naming the remedy;
+  // reverse_winding (--reverse-winding) reverses every face as read: then nothing needs turning and every face,
+  // the lights included, faces as upright.
+  const PolygonSoup upright_in = io::read_obj(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj");
+  PolygonSoup mirrored_in = upright_in;
+  for (Vec3& p : mirrored_in.positions) p.x() = -p.x();
+  Report ru, rm, rr;
+  const PolygonSoup upright = prepare(upright_in, {}, ru);
+  prepare(mirrored_in, {}, rm);
+  EXPECT_NE(warning_with(rm, "reoriented").find("--reverse-winding"), std::string::npos) << all_warnings(rm);
+  EXPECT_EQ(warning_with(ru, "reoriented"), "") << all_warnings(ru);
+  PrepareOptions reverse;
+  reverse.reverse_winding = true;
+  const PolygonSoup reversed = prepare(mirrored_in, reverse, rr);
+  EXPECT_EQ(count(rr, "faces_reversed_as_asked"), static_cast<long>(mirrored_in.faces.size()));
+  EXPECT_EQ(count(rr, "faces_reoriented"), 0) << all_warnings(rr);
+  EXPECT_EQ(count(rr, "emitters_facing_a_near_surface"), 0) << all_warnings(rr);
+  std::map<int, Vec3> nu, nr;
+  for (const SoupFace& f : upright.faces)
+    nu.try_emplace(f.origin, Vec3::Zero()).first->second += newell_normal(corners(upright, f));
+  for (const SoupFace& f : reversed.faces) {
+    Vec3 n = newell_normal(corners(reversed, f));
+    n.x() = -n.x();
+    nr.try_emplace(f.origin, Vec3::Zero()).first->second += n;  // mirrored back: -M(-M n) = n, the reversal undoes the minus
+  }
+  ASSERT_EQ(nu.size(), nr.size());
+  int opposite = 0;
+  for (const auto& [origin, n] : nu)
+    if (!(n.dot(nr[origin]) > 0) && ++opposite <= 5) ADD_FAILURE() << "input face " << origin << " faces the other way";
+  EXPECT_EQ(opposite, 0);
+}
+
 TEST(PrepareOrient, LightFacingTheCeilingCloseByIsReported) {
   // Room [0,4]^3 wound inward and a 1 m^2 light 2 cm below its ceiling: facing down it lights the room; facing up
   // its light stays in the 2 cm gap (a mirrored export). Both sides see the scene, so it is not turned (a cove

@@ -385,6 +385,14 @@ PolygonSoup prepare(const PolygonSoup& soup, const PrepareOptions& options, Repo
   check_geometric_scale(soup);  // before any work that depends on it
 
   PolygonSoup out = soup;
+  report.counts["faces_reversed_as_asked"] += 0;
+  if (options.reverse_winding) {
+    // The first corner kept, as the orientation repair flips: corner 0 and the face ids unchanged.
+    for (SoupFace& f : out.faces) std::reverse(f.vertices.begin() + 1, f.vertices.end());
+    const long n = static_cast<long>(out.faces.size());
+    report.warn("faces_reversed_as_asked", n,
+                "the winding of all " + plural(n, "face", "faces") + " was reversed as asked (--reverse-winding)");
+  }
   if (!options.repair && options.max_edge == 0) {
     // Nothing changes; only the read-only detection runs.
   } else {

@@ -420,21 +420,32 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
   // Apply: every flipped face counted and named.
   long flipped = 0;
   std::vector<int> flipped_ids;
+  double area_all = 0, area_flipped = 0;
   for (int k = 0; k < nf; ++k) {
     const int final_flip = flip[k] ^ surface_flip[C.comp[k]];
+    const double area = 0.5 * newell_normal(corners(s, k)).norm();
+    area_all += area;
     if (final_flip) {
       flip_face(s.faces[k]);
       ++flipped;
       flipped_ids.push_back(origin_of(s, k));
+      area_flipped += area;
     }
   }
   report.counts["surfaces_flipped"] += 0;
   if (flipped > 0) {
     report.counts["faces_reoriented"] += flipped;
+    // Most of the area turned: the model came inside out as a whole (a mirrored export). Reversing it as read turns
+    // what no ray can tell as well (a light facing a ceiling close by).
+    const std::string whole =
+        area_flipped > 0.5 * area_all
+            ? " (most of the model's area was inside out, as a mirrored export leaves it: --reverse-winding reverses "
+              "every face as read, lights facing a ceiling too)"
+            : "";
     report.warnings.push_back(
         plural(flipped, "face was", "faces were") + " reoriented (to agree with the majority of their connected "
         "surface" + std::string(surfaces + coupled > 0 ? ", or with their whole surface" : "") + "): input face" +
-        (flipped_ids.size() == 1 ? " " : "s ") + id_list(flipped_ids));
+        (flipped_ids.size() == 1 ? " " : "s ") + id_list(flipped_ids) + whole);
   }
   if (surfaces > 0) {
     std::string list;

@@ -6,6 +6,8 @@
 //   PolygonSoup ready = prepare(soup, options, prep);
 //   Scene scene = build_scene(ready);   // or prepare_and_build(), which also merges the reports
 //
+// First, with or without repair, options.reverse_winding reverses every face's corner order (the first corner
+// kept): a model exported inside out as a whole (mirrored by a handedness conversion).  "faces_reversed_as_asked"
 // Repair (options.repair), in this order:
 //  1. weld: used vertices closer than weld_tolerance * (bounding-box diagonal) become one (the lowest
 //     index keeps its coordinates)                                            "vertices_merged"
@@ -98,6 +100,7 @@ enum class Orientation { file, consistent, visibility };
 Orientation parse_orientation(const std::string& name);
 
 struct PrepareOptions {
+  bool reverse_winding = false;  // every face reversed first, as asked (--reverse-winding)
   bool repair = true;
   Orientation orient = Orientation::visibility;
   bool imprint = true;  // with repair: contact lines and crossings imprinted, hidden fragments removed
