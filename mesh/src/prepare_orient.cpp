@@ -437,11 +437,14 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
     report.counts["faces_reoriented"] += flipped;
     // Most of the area turned: the model came inside out as a whole (a mirrored export). Reversing it as read turns
     // what no ray can tell as well (a light facing a ceiling close by).
+    const auto asked = report.counts.find("faces_reversed_as_asked");
+    const bool reversed = asked != report.counts.end() && asked->second > 0;
     const std::string whole =
-        area_flipped > 0.5 * area_all
-            ? " (most of the model's area was inside out, as a mirrored export leaves it: --reverse-winding reverses "
-              "every face as read, lights facing a ceiling too)"
-            : "";
+        !(area_flipped > 0.5 * area_all) ? ""
+        : reversed ? " (most of the model's area was turned back after --reverse-winding reversed it: was the file's "
+                     "winding right?)"
+                   : " (most of the model's area was inside out, as a mirrored export leaves it: --reverse-winding "
+                     "reverses every face as read, lights facing a ceiling too)";
     report.warnings.push_back(
         plural(flipped, "face was", "faces were") + " reoriented (to agree with the majority of their connected "
         "surface" + std::string(surfaces + coupled > 0 ? ", or with their whole surface" : "") + "): input face" +
