@@ -373,6 +373,10 @@ TEST(PrepareOrient, ReverseWindingTurnsAMirroredExportBackLightsIncluded) {
   for (const auto& [origin, n] : nu)
     if (!(n.dot(nr[origin]) > 0) && ++opposite <= 5) ADD_FAILURE() << "input face " << origin << " faces the other way";
   EXPECT_EQ(opposite, 0);
+  // The flag on a model that was right: the repair turns most of it back (not the lights) and asks.
+  Report rw;
+  prepare(upright_in, reverse, rw);
+  EXPECT_NE(warning_with(rw, "reoriented").find("was the file's winding right?"), std::string::npos) << all_warnings(rw);
 }
 
 TEST(PrepareOrient, LightFacingTheCeilingCloseByIsReported) {
