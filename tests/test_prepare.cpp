@@ -304,6 +304,25 @@ TEST(PrepareOrient, OpenBottomedBlockOnTheFloorWoundInwardIsTurnedRound) {
   }
 }
 
+// Input faces of `mirrored` (prepared from the upright model with x -> -x) whose pieces, mirrored back, face
+// otherwise than the upright model's pieces (the sums of their Newell normals point apart). A face as the upright
+// one: its winding was turned (by the repair or by reverse_winding), since (Ma) x (Mb) = -M (a x b).
+std::vector<int> facing_otherwise_than_mirrored(const PolygonSoup& upright, const PolygonSoup& mirrored) {
+  std::map<int, Vec3> nu, nm;
+  for (const SoupFace& f : upright.faces) nu.try_emplace(f.origin, Vec3::Zero()).first->second += newell_normal(corners(upright, f));
+  for (const SoupFace& f : mirrored.faces) {
+    Vec3 n = newell_normal(corners(mirrored, f));
+    n.x() = -n.x();
+    nm.try_emplace(f.origin, Vec3::Zero()).first->second += n;
+  }
+  std::vector<int> out;
+  for (const auto& [origin, n] : nu) {
+    const auto it = nm.find(origin);
+    if (it == nm.end() || !(n.dot(it->second) > 0)) out.push_back(origin);
+  }
+  return out;
+}
+
 TEST(PrepareOrient, MirroredModelsAreOrientedAsTheUprightOnes) {
   // A bundled model mirrored (x -> -x, windings kept: every face inside out, as a handedness conversion exports
   // it) must come out of preparation as the upright one does: same orientation of every input face (mirrored
@@ -322,20 +341,9 @@ TEST(PrepareOrient, MirroredModelsAreOrientedAsTheUprightOnes) {
     const PolygonSoup upright = prepare(upright_in, {}, ru), mirrored = prepare(mirrored_in, {}, rm);
     EXPECT_EQ(count(ru, "faces_reoriented"), 0) << name << all_warnings(ru);
     EXPECT_GT(count(rm, "faces_reoriented"), 0) << name << all_warnings(rm);
-    std::map<int, Vec3> nu, nm;  // per input face: the sum of its pieces' Newell normals
-    for (const SoupFace& f : upright.faces)
-      nu.try_emplace(f.origin, Vec3::Zero()).first->second += newell_normal(corners(upright, f));
-    for (const SoupFace& f : mirrored.faces) {
-      Vec3 n = newell_normal(corners(mirrored, f));
-      n.x() = -n.x();
-      nm.try_emplace(f.origin, Vec3::Zero()).first->second += n;  // mirrored back: (Ma) x (Mb) = -M (a x b), the turn the repair made undoes the minus
-    }
-    ASSERT_EQ(nu.size(), nm.size()) << name;
-    int opposite = 0;
-    for (const auto& [origin, n] : nu)
-      if (!(n.dot(nm[origin]) > 0) && ++opposite <= 5)
-        ADD_FAILURE() << name << ": input face " << origin << " faces the other way mirrored" << all_warnings(rm);
-    EXPECT_EQ(opposite, 0) << name;
+    const std::vector<int> opposite = facing_otherwise_than_mirrored(upright, mirrored);
+    EXPECT_TRUE(opposite.empty()) << name << ": " << opposite.size() << " input faces face the other way mirrored, "
+                                  << "the first " << (opposite.empty() ? -1 : opposite[0]) << all_warnings(rm);
     EXPECT_EQ(count(rm, "hidden_fragments_removed"), count(ru, "hidden_fragments_removed")) << name << all_warnings(rm);
     EXPECT_EQ(mirrored.faces.size(), upright.faces.size()) << name;
   }
@@ -360,19 +368,9 @@ TEST(PrepareOrient, ReverseWindingTurnsAMirroredExportBackLightsIncluded) {
   EXPECT_EQ(count(rr, "faces_reversed_as_asked"), static_cast<long>(mirrored_in.faces.size()));
   EXPECT_EQ(count(rr, "faces_reoriented"), 0) << all_warnings(rr);
   EXPECT_EQ(count(rr, "emitters_facing_a_near_surface"), 0) << all_warnings(rr);
-  std::map<int, Vec3> nu, nr;
-  for (const SoupFace& f : upright.faces)
-    nu.try_emplace(f.origin, Vec3::Zero()).first->second += newell_normal(corners(upright, f));
-  for (const SoupFace& f : reversed.faces) {
-    Vec3 n = newell_normal(corners(reversed, f));
-    n.x() = -n.x();
-    nr.try_emplace(f.origin, Vec3::Zero()).first->second += n;  // mirrored back: -M(-M n) = n, the reversal undoes the minus
-  }
-  ASSERT_EQ(nu.size(), nr.size());
-  int opposite = 0;
-  for (const auto& [origin, n] : nu)
-    if (!(n.dot(nr[origin]) > 0) && ++opposite <= 5) ADD_FAILURE() << "input face " << origin << " faces the other way";
-  EXPECT_EQ(opposite, 0);
+  const std::vector<int> opposite = facing_otherwise_than_mirrored(upright, reversed);
+  EXPECT_TRUE(opposite.empty()) << opposite.size() << " input faces face the other way, the first "
+                                << (opposite.empty() ? -1 : opposite[0]) << all_warnings(rr);
   // The flag on a model that was right: the repair turns most of it back (not the lights) and asks.
   Report rw;
   prepare(upright_in, reverse, rw);
