@@ -87,7 +87,8 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     sub->add_flag("--reverse-winding", common.prepare.reverse_winding,
                   "Reverse every face's winding as read, before any repair: a model exported inside out (mirrored "
-                  "by a handedness conversion) that is one connected surface, whose side no other surface tells");
+                  "by a handedness conversion). The repair turns most of such a model back by itself, but not one "
+                  "that is a single connected surface, nor lights facing a ceiling close by");
     sub->add_option("--max-edge", common.prepare.max_edge,
                     "Refine: split every edge longer than this (metres) so no patch edge exceeds it; 0 = off")
         ->check(NonNegative)
