@@ -247,6 +247,8 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
   // "side" below is relative to the orientation after the majority step.
   std::vector<char> usable(nf);
   for (int k = 0; k < nf; ++k) usable[k] = usable_face(s, k);
+  std::vector<double> face_area(nf);  // m^2, one Newell normal per face (the rays' weights, the emitters' size)
+  for (int k = 0; k < nf; ++k) face_area[k] = 0.5 * newell_normal(corners(s, k)).norm();
   const SoupRays rays(s, usable);
   std::vector<double> evidence_front(nc, 0), evidence_back(nc, 0);
   std::vector<long> front_rays(nc, 0), back_rays(nc, 0);
@@ -277,7 +279,7 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
       std::mt19937_64 rng(0x9E3779B97F4A7C15ull ^ std::uint64_t(k) * 0xBF58476D1CE4E5B9ull);
       const Vec3 n = rays.normal(k) * (flip[k] ? -1.0 : 1.0);
       const bool emitter = !s.materials[s.faces[k].material].two_sided && s.materials[s.faces[k].material].emission.maxCoeff() > 0;
-      const double near_gap = emitter ? kNearGap * std::sqrt(0.5 * newell_normal(corners(s, k)).norm()) : 0.0;
+      const double near_gap = emitter ? kNearGap * std::sqrt(face_area[k]) : 0.0;
       for (int r = 0; r < rays_per_side[k]; ++r) {
         const Vec3 o = rays.sample(k, rng);
         const Vec3 d = cosine_direction(n, rng);
@@ -308,7 +310,7 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
     const FaceRays& fr = per_face[static_cast<size_t>(k)];
     if (fr.cast.empty()) continue;
     const int c = C.comp[k];
-    const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
+    const double area = face_area[k] / rays_per_side[k];
     evidence_front[c] += area * fr.evidence[0];
     evidence_back[c] += area * fr.evidence[1];
     front_rays[c] += fr.evidence[0];
@@ -365,7 +367,7 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
     for (int k = 0; k < nf; ++k) {
       const int c = C.comp[k];
       if (s.materials[s.faces[k].material].two_sided) continue;
-      const double area = 0.5 * newell_normal(corners(s, k)).norm() / rays_per_side[k];
+      const double area = face_area[k] / rays_per_side[k];
       for (const Ray& r : per_face[static_cast<size_t>(k)].cast) {
         const int d = C.comp[r.hit];
         if (d == c || (decided[c] && decided[d]) || s.materials[s.faces[r.hit].material].two_sided) continue;
@@ -423,7 +425,7 @@ void orient(PolygonSoup& s, Orientation mode, double tol, Report& report) {
   double area_all = 0, area_flipped = 0;
   for (int k = 0; k < nf; ++k) {
     const int final_flip = flip[k] ^ surface_flip[C.comp[k]];
-    const double area = 0.5 * newell_normal(corners(s, k)).norm();
+    const double area = face_area[k];
     area_all += area;
     if (final_flip) {
       flip_face(s.faces[k]);
