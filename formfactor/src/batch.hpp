@@ -54,6 +54,10 @@ struct BatchKernels {
   // column-major. Centres of a link's two nodes must differ.
   void (*gather_links)(const double* rec, const double* ca, const int* src, const float* vis, long long count,
                        double* out);
+  // The near-pair contour's inner integral (contour.cpp) at count points of an edge: out[k] = int_0^1
+  // ln |w0 + s[k] u - t v| dt, v of length L > 0 (inv_L = 1 / L), in closed form. w0, u, v: 3 doubles each.
+  void (*edge_log)(const double* w0, const double* u, const double* v, double L, double inv_L, const double* s,
+                   int count, double* out);
 };
 constexpr int kMomentRecord = 33;
 

@@ -5,27 +5,11 @@
 #include <cmath>
 #include <queue>
 
+#include "batch.hpp"
 #include "internal.hpp"
 
 namespace lambert::formfactor::detail {
 namespace {
-
-// int_0^1 ln |w - t v| dt for w = p - B0, in closed form: with L = |v|, the distance delta from p to the line
-// and sigma the signed position along it, the antiderivative of ln(sigma^2 + delta^2) is
-// G = sigma ln(sigma^2 + delta^2) - 2 sigma + 2 delta atan(sigma / delta).
-inline double edge_log_integral(const Vec3& w, const Vec3& v, double L, double inv_L) {
-  const double wv = w.dot(v) * inv_L;
-  const double d2 = w.cross(v).squaredNorm() * inv_L * inv_L;
-  const double d = std::sqrt(d2);
-  auto G = [&](double s) {
-    const double r2 = s * s + d2;
-    double g = -2 * s;
-    if (s != 0) g += s * std::log(r2);
-    if (d > 0) g += 2 * d * (s < 0 ? -atan2_pos(-s, d) : atan2_pos(s, d));  // atan2(s, d), the kernels' ~1 ulp one
-    return g;
-  };
-  return (G(L - wv) - G(-wv)) * (0.5 * inv_L);
-}
 
 // Gauss-Kronrod 7/15 nodes and weights on [-1, 1] (nodes >= 0; the rule is symmetric).
 constexpr double kXgk[8] = {0.991455371120812639206854697526329, 0.949107912342758524526189684047851,
@@ -47,14 +31,18 @@ struct Interval {
 
 // One Gauss-Kronrod 7/15 panel; error estimate |K15 - G7|, the error of the lower-order rule, which
 // over-estimates the error of K15 (deliberately: QUADPACK's sharper heuristic let a 3e-7 error through on
-// nearly touching parallel rectangles at tolerance 1e-8).
+// nearly touching parallel rectangles at tolerance 1e-8). f(tau, n, out) evaluates n <= 15 nodes at once.
 template <class F>
 Interval gk15(const F& f, double a, double b, int piece, long long& evals) {
   const double c = 0.5 * (a + b), h = 0.5 * (b - a);
-  const double fc = f(c);
+  double tau[15], fv[15];
+  for (int i = 0; i < 7; ++i) tau[i] = c - h * kXgk[i], tau[7 + i] = c + h * kXgk[i];
+  tau[14] = c;
+  f(tau, 15, fv);
+  const double fc = fv[14];
   double k = fc * kWgk[7], g = fc * kWg[3];
   for (int i = 0; i < 7; ++i) {
-    const double f1 = f(c - h * kXgk[i]), f2 = f(c + h * kXgk[i]);
+    const double f1 = fv[i], f2 = fv[7 + i];
     k += kWgk[i] * (f1 + f2);
     if (i % 2 == 1) g += kWg[i / 2] * (f1 + f2);
   }
@@ -113,6 +101,7 @@ ContourResult contour_pair(std::span<const Vec3> Pi, std::span<const Vec3> Pj, d
   const double tol_ab = tol_scaled / weight_sum;
   constexpr int kMaxIntervals = 4000;
   double total = 0, total_err = 0;
+  const BatchKernels& K = batch_kernels();
   std::vector<double> cuts;
   std::vector<Interval> heap_store;
   for (size_t a = 0; a < mi; ++a) {
@@ -124,7 +113,6 @@ ContourResult contour_pair(std::span<const Vec3> Pi, std::span<const Vec3> Pj, d
       if (!(Lb2 > 0) || !(std::abs(uv) > 1e-14 * std::sqrt(La2 * Lb2))) continue;
       const double Lb = std::sqrt(Lb2), inv_Lb = 1.0 / Lb;
       const Vec3 w0 = A[a] - B[b];
-      auto g = [&](double s) { return edge_log_integral(w0 + s * U[a], V[b], Lb, inv_Lb); };
       // Breakpoints where edge a passes within a quarter of its length of segment b (closest approach, and
       // the feet of b's endpoints): the integrand's derivative is log-singular where the edges touch.
       cuts.assign({0.0, 1.0});
@@ -144,17 +132,24 @@ ContourResult contour_pair(std::span<const Vec3> Pi, std::span<const Vec3> Pj, d
       // Each piece between cuts is integrated in tau with s = c0 + L phi(tau), phi(tau) = 10 tau^3 - 15 tau^4
       // + 6 tau^5: phi' vanishes to second order at both ends, which turns the (s - c) log(s - c) behaviour
       // at touching points into a much smoother tau^5 log(tau), so few subdivisions are needed.
-      auto h = [&](int piece, double tau) {
+      auto h = [&](int piece, const double* tau, int n, double* out) {
         const double c0 = cuts[piece], L = cuts[piece + 1] - cuts[piece];
-        const double t2 = tau * tau, u = 1 - tau;
-        const double phi = t2 * tau * (10 - 15 * tau + 6 * t2), dphi = 30 * t2 * u * u;
-        return dphi > 0 ? g(c0 + L * phi) * L * dphi : 0.0;
+        double sv[15], jac[15];
+        for (int k = 0; k < n; ++k) {
+          const double t = tau[k], t2 = t * t, u = 1 - t;
+          const double phi = t2 * t * (10 - 15 * t + 6 * t2), dphi = 30 * t2 * u * u;
+          sv[k] = c0 + L * phi;
+          jac[k] = dphi > 0 ? L * dphi : 0.0;
+        }
+        K.edge_log(w0.data(), U[a].data(), V[b].data(), Lb, inv_Lb, sv, n, out);
+        for (int k = 0; k < n; ++k) out[k] = jac[k] > 0 ? out[k] * jac[k] : 0.0;
       };
       std::priority_queue<Interval> heap;
       double val = 0, err = 0, mag = 0;
       for (size_t k = 0; k + 1 < cuts.size(); ++k) {
         const int piece = int(k);
-        const Interval iv = gk15([&](double tau) { return h(piece, tau); }, 0.0, 1.0, piece, res.evaluations);
+        const Interval iv =
+            gk15([&](const double* tau, int n, double* out) { h(piece, tau, n, out); }, 0.0, 1.0, piece, res.evaluations);
         val += iv.value;
         err += iv.error;
         mag += std::abs(iv.value);
@@ -172,7 +167,7 @@ ContourResult contour_pair(std::span<const Vec3> Pi, std::span<const Vec3> Pj, d
           res.error += top.error * std::abs(uv);
           continue;
         }
-        auto f = [&](double tau) { return h(top.piece, tau); };
+        auto f = [&](const double* tau, int n, double* out) { h(top.piece, tau, n, out); };
         const Interval l = gk15(f, top.a, mid, top.piece, res.evaluations);
         const Interval r = gk15(f, mid, top.b, top.piece, res.evaluations);
         val += l.value + r.value - top.value;

@@ -67,6 +67,30 @@ inline vd atan2_pos(vd z, vd w) {
   return sel(w < 0, kPi - th, th);
 }
 
+// ln x for positive normal x, not subnormal (Cephes log: x = m 2^e with m in [sqrt(1/2), sqrt(2)), ln m = z - z^2/2 +
+// z^3 P(z) / Q(z) for z = m - 1, ln 2 split in two so that e ln 2 adds no rounding; ~1 ulp).
+inline vd vlog(vd x) {
+  vl bits;
+  std::memcpy(&bits, &x, sizeof x);
+  vl e = ((bits >> 52) & 0x7ff) - 1022;  // x = m 2^e, m in [0.5, 1)
+  bits = (bits & 0x000fffffffffffffLL) | 0x3fe0000000000000LL;
+  vd m;
+  std::memcpy(&m, &bits, sizeof m);
+  const vl small = m < 0.70710678118654752440;
+  e = small ? e - 1 : e;
+  const vd z = sel(small, m + m - 1.0, m - 1.0);
+  const vd ef = __builtin_convertvector(e, vd);
+  const vd P = ((((1.01875663804580931796e-4 * z + 4.97494994976747001425e-1) * z + 4.70579119878881725854e0) * z +
+                 1.44989225341610930846e1) * z + 1.79368678507819816313e1) * z + 7.70838733755885391666e0;
+  const vd Q = ((((z + 1.12873587189167450590e1) * z + 4.52279145837532221105e1) * z + 8.29875266912776603211e1) * z +
+                7.11544750618563894466e1) * z + 2.31251620126765340583e1;
+  const vd z2 = z * z;
+  vd y = z * (z2 * P / Q);
+  y = y - ef * 2.121944400546905827679e-4;
+  y = y - 0.5 * z2;
+  return (z + y) + ef * 0.693359375;
+}
+
 struct Quad {
   vd x[4], y[4], z[4];
 };
@@ -430,10 +454,37 @@ void gather_links(const double* rec, const double* ca, const int* src, const flo
   }
 }
 
+// int_0^1 ln |w - t v| dt for w = w0 + s u: with the distance d from w to the line of v and sigma the signed position
+// along it, the antiderivative of ln(sigma^2 + d^2) is G = sigma ln(sigma^2 + d^2) - 2 sigma + 2 d atan(sigma / d).
+void edge_log(const double* w0, const double* u, const double* v, double L, double inv_L, const double* s, int count,
+              double* out) {
+  for (int b = 0; b < count; b += W) {
+    const int m = count - b < W ? count - b : W;
+    vd sv = splat(0);
+    for (int k = 0; k < m; ++k) sv[k] = s[b + k];
+    const vd wx = w0[0] + sv * u[0], wy = w0[1] + sv * u[1], wz = w0[2] + sv * u[2];
+    const vd wv = (wx * v[0] + wy * v[1] + wz * v[2]) * inv_L;
+    const vd cx = wy * v[2] - wz * v[1], cy = wz * v[0] - wx * v[2], cz = wx * v[1] - wy * v[0];
+    const vd d2 = (cx * cx + cy * cy + cz * cz) * (inv_L * inv_L);
+    const vd d = vsqrt(d2);
+    auto G = [&](vd sg) {
+      const vd r2 = sg * sg + d2;
+      vd g = -2 * sg;
+      g += sel(sg != 0, sg * vlog(sel(r2 > 0, r2, splat(1.0))), splat(0));
+      const vd at = atan2_pos(vabs(sg), d);
+      g += sel(d > 0, 2 * d * sel(sg < 0, -at, at), splat(0));
+      return g;
+    };
+    const vd r = (G(L - wv) - G(-wv)) * (0.5 * inv_L);
+    for (int k = 0; k < m; ++k) out[b + k] = r[k];
+  }
+}
+
 }  // namespace
 
 const BatchKernels& LAMBERT_CAT(batch_kernels_, LAMBERT_ISA_SUFFIX)() {
-  static const BatchKernels k{LAMBERT_ISA_NAME, &classify, &eval_points, &eval_centroid, &transpose, &gather_links};
+  static const BatchKernels k{LAMBERT_ISA_NAME, &classify,     &eval_points, &eval_centroid,
+                              &transpose,       &gather_links, &edge_log};
   return k;
 }
 
