@@ -683,7 +683,10 @@ int run_formfactors(const CommonOptions& o) {
     Progress progress(choice.hierarchical ? "hierarchy" : "form factors", !o.quiet);
     timer.start("form_factors");
     if (choice.hierarchical) {
-      const formfactor::HierarchyOptions h = hierarchy_options(o, scene, &progress);
+      // The form factors are the output, not a radiance: every entry counts whatever the surfaces' materials (a
+      // view-factor file carries no emission; its user brings the emissivities). Refinement by geometry alone.
+      formfactor::HierarchyOptions h = hierarchy_options(o, scene, &progress);
+      h.brightness.clear();
       op = std::make_unique<formfactor::HierarchicalOperator>(formfactor::build_hierarchy(scene.geometry, h, &hs));
       st = stats_of(hs, h);
     } else {

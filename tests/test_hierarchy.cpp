@@ -347,6 +347,40 @@ TEST_F(HierarchyCli, FormfactorsStreamingMatchesDense) {
   EXPECT_LT(M.size(), H.size());
 }
 
+// A view-factor file is geometry: the hierarchy behind `formfactors` refines by geometry alone, so the same model
+// with its light switched off and a wall made black (what a thermal engineer's model looks like: no emitters) gives
+// the same entries to the bit. (Refined by the materials' brightness, the unlit model was linked as if nothing
+// mattered: udales_shape.obj's row sums were 0.084 off the dense ones.)
+TEST_F(HierarchyCli, FormfactorsDoNotDependOnTheMaterials) {
+  const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
+  {
+    std::ofstream m(path("unlit.json"));
+    m << R"({"materials": {"light": {"reflectance": 0.78, "emission": 0}, "red": {"reflectance": 0}}})";
+  }
+  const std::string common = " --max-edge 0.06 --operator hierarchical --hierarchy-tolerance 1e-2 -q";
+  const auto lit = test::run("formfactors " + scene + " -o " + path("lit.csv") + " --stats " + path("lit.json") + common);
+  ASSERT_EQ(lit.status, 0) << lit.output;
+  const auto unlit = test::run("formfactors " + scene + " --materials " + path("unlit.json") + " -o " + path("unlit.csv") +
+                               " --stats " + path("unlit.json.out") + common);
+  ASSERT_EQ(unlit.status, 0) << unlit.output;
+  const auto A = read_csv(path("lit.csv")), B = read_csv(path("unlit.csv"));
+  ASSERT_GT(A.size(), 100u);
+  EXPECT_EQ(A.size(), B.size());
+  long long differ = 0;
+  for (const auto& [k, v] : A) {
+    const auto it = B.find(k);
+    if (it != B.end() && it->second == v) continue;
+    if (++differ <= 5)
+      ADD_FAILURE() << "entry (" << k.first << ", " << k.second << "): lit " << v << ", unlit "
+                    << (it == B.end() ? 0.0 : it->second);
+  }
+  EXPECT_EQ(differ, 0);
+  const nlohmann::json a = nlohmann::json::parse(std::ifstream(path("lit.json"))),
+                       b = nlohmann::json::parse(std::ifstream(path("unlit.json.out")));
+  EXPECT_EQ(a["hierarchy"]["row_error_max"], b["hierarchy"]["row_error_max"]);
+  EXPECT_EQ(a["hierarchy"]["far_links"], b["hierarchy"]["far_links"]);
+}
+
 // --operator auto prints its choice and why; an impossible request is refused with the estimate (exit 1).
 TEST_F(HierarchyCli, OperatorChoicePrintedAndUnsupportedCombinationsRefused) {
   const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
