@@ -49,6 +49,12 @@ struct TreeBuilder {
   std::vector<Box> pbox;
   std::span<const int> cell;   // per patch: its room (portals.hpp) or cell (enclosures.hpp), or empty
   std::span<const int> outer;  // per patch: its cell (enclosures.hpp), which holds whole rooms, or empty
+  // Values closer than this are one value (centroid coordinates; normals' use 1e-9): set to 1e-9 of the scene's size,
+  // so that the tree does not depend on where the model sits. A model moved by 4,000 km has its corners rounded by
+  // ~1e-9 m: coordinates equal in the file (a lattice city's rows of buildings) come out unequal by that much, and
+  // ordering them by their exact values (or picking the larger of two equal extents) built another tree.
+  double eps_c = 0;
+  std::vector<int> rank;  // scratch: per position in perm, its value's rank among the node's patches
 
   bool mixed(std::span<const int> c, int begin, int end) const {
     if (c.empty()) return false;
@@ -75,30 +81,47 @@ struct TreeBuilder {
       nb.add(g.normal[perm[k]]);
     }
     const Vec3 ce = cb.hi - cb.lo, ne = (nb.hi - nb.lo) * (0.5 * ce.norm());
+    // The largest extent; extents within 1e-9 of it (relative) count as equal to it, and the first of them wins.
+    double best = 0;
+    for (int k = 0; k < 3; ++k) best = std::max({best, ce[k], ne[k]});
     int key = 0;
-    double best = -1;
-    for (int k = 0; k < 3; ++k) {
-      if (ce[k] > best) best = ce[k], key = k;
-      if (ne[k] > best) best = ne[k], key = 3 + k;
+    for (int k = 0, found = 0; k < 3 && !found; ++k) {
+      if (ce[k] >= best * (1 - 1e-9)) key = k, found = 1;
+      else if (ne[k] >= best * (1 - 1e-9)) key = 3 + k, found = 1;
     }
     int mid = (begin + end) / 2;
     auto value = [&](int p) { return key < 3 ? g.centroid[p][key] : g.normal[p][key - 3]; };
+    // Order by value, values within eps of their neighbour in that order being one value (a run), ties by patch.
+    // rank[p] = the run's index (the same for every patch of it).
+    const double eps = key < 3 ? eps_c : 1e-9;
+    std::sort(perm.begin() + begin, perm.begin() + end, [&](int a, int b) {
+      const double va = value(a), vb = value(b);
+      return va < vb || (va == vb && a < b);
+    });
+    if (rank.size() < g.centroid.size()) rank.resize(g.centroid.size());
+    for (int k = begin, run = 0, start = begin; k <= end; ++k) {
+      if (k < end && k > begin && value(perm[k]) - value(perm[k - 1]) <= eps) continue;
+      if (k > begin) std::sort(perm.begin() + start, perm.begin() + k);  // within a run: by patch
+      for (int j = start; j < k; ++j) rank[size_t(perm[j])] = run;
+      start = k, ++run;
+    }
     // Patches of several cells (enclosures.hpp), else of several rooms: whole cells (rooms) go to one side, ordered
     // by their mean key, and the split falls between them nearest the median, so that the nodes below hold one cell
     // (room) each and the refinement can refuse pairs across cells at once. Cells first: a node above them holds
     // whole cells, and meets any node outside it in none of them (Refiner::setup).
     const std::span<const int> group = mixed(outer, begin, end) ? outer : mixed(cell, begin, end) ? cell : std::span<const int>();
     if (!group.empty()) {
-      std::map<int, std::pair<double, int>> mean;
+      // Cells ordered by their mean rank (sums of integers: equal means are equal exactly), then by cell.
+      std::map<int, std::pair<long long, long long>> mean;
       for (int k = begin; k < end; ++k) {
         auto& m = mean[group[perm[k]]];
-        m.first += value(perm[k]);
+        m.first += rank[size_t(perm[k])];
         ++m.second;
       }
       struct Key {
-        double cell_mean;
+        long long sum, count;
         int cell;
-        double v;
+        int r;
         int p;
       };
       std::vector<Key> keys;
@@ -106,11 +129,15 @@ struct TreeBuilder {
       for (int k = begin; k < end; ++k) {
         const int p = perm[k];
         const auto& m = mean[group[p]];
-        keys.push_back({m.first / m.second, group[p], value(p), p});
+        keys.push_back({m.first, m.second, group[p], rank[size_t(p)], p});
       }
       std::sort(keys.begin(), keys.end(), [](const Key& x, const Key& y) {
-        if (x.cell != y.cell) return x.cell_mean < y.cell_mean || (x.cell_mean == y.cell_mean && x.cell < y.cell);
-        return x.v < y.v || (x.v == y.v && x.p < y.p);
+        if (x.cell != y.cell) {
+          __extension__ typedef __int128 Wide;  // sums of ranks times counts: beyond 64 bits above ~3 M patches
+          const Wide lx = Wide(x.sum) * y.count, ly = Wide(y.sum) * x.count;
+          return lx < ly || (lx == ly && x.cell < y.cell);
+        }
+        return x.r < y.r || (x.r == y.r && x.p < y.p);
       });
       for (int k = begin; k < end; ++k) perm[k] = keys[size_t(k - begin)].p;
       int best_mid = -1;
@@ -118,12 +145,7 @@ struct TreeBuilder {
         if (group[perm[k]] != group[perm[k - 1]] && (best_mid < 0 || std::abs(k - mid) < std::abs(best_mid - mid)))
           best_mid = k;
       mid = best_mid;
-    } else {
-      std::nth_element(perm.begin() + begin, perm.begin() + mid, perm.begin() + end, [&](int a, int b) {
-        const double va = value(a), vb = value(b);
-        return va < vb || (va == vb && a < b);  // total order: the tree does not depend on the library's nth_element
-      });
-    }
+    }  // else: perm is in (rank, patch) order already, split at the median
     const int l = build(begin, mid, id, level + 1);
     const int r = build(mid, end, id, level + 1);
     nodes[id].left = l;
@@ -1106,7 +1128,12 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     std::iota(d.perm.begin(), d.perm.end(), 0);
     d.nodes.reserve(size_t(2 * n));
     TreeBuilder tb{g, d.nodes, d.perm, {}, cells,
-                   !rooms.empty() && enc.surfaces > 0 ? std::span<const int>(enc.cell) : std::span<const int>()};
+                   !rooms.empty() && enc.surfaces > 0 ? std::span<const int>(enc.cell) : std::span<const int>(), 0.0, {}};
+    {
+      Box cbox;
+      for (int p = 0; p < n; ++p) cbox.add(g.centroid[p]);
+      tb.eps_c = n > 0 ? 1e-9 * (cbox.hi - cbox.lo).norm() : 0.0;
+    }
     tb.pbox.resize(n);
     for (int p = 0; p < n; ++p)
       for (const Vec3& v : g.polygon(p)) tb.pbox[p].add(v);

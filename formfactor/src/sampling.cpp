@@ -46,6 +46,12 @@ void sample_patch(const mesh::PatchGeometry& g, const PatchData& P, int p, int k
   // T[0]T[1] and T[0]T[2] (5 % of the area each): on a sliver whose short edge touches an occluder, the shadow
   // there was missed and the visible fraction biased high, at any number of rays.
   const int t0 = g.triangle_offsets[p], t1 = g.triangle_offsets[p + 1];
+  thread_local std::vector<double> areas;  // the triangles' areas, once per call (not per sample)
+  areas.clear();
+  for (int t = t0; t < t1; ++t) {
+    const auto& T = g.triangles[t];
+    areas.push_back(0.5 * (g.points[T[1]] - g.points[T[0]]).cross(g.points[T[2]] - g.points[T[0]]).norm());
+  }
   for (int a = 0; a < k1; ++a)
     for (int b = 0; b < k2; ++b) {
       const int k = a * k2 + b;
@@ -53,8 +59,7 @@ void sample_patch(const mesh::PatchGeometry& g, const PatchData& P, int p, int k
       int t = t0;
       double at = 0;
       for (; t < t1; ++t) {
-        const auto& T = g.triangles[t];
-        at = 0.5 * (g.points[T[1]] - g.points[T[0]]).cross(g.points[T[2]] - g.points[T[0]]).norm();
+        at = areas[size_t(t - t0)];
         if (u <= at || t == t1 - 1) break;
         u -= at;
       }
