@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -157,6 +158,71 @@ struct Merged {
 constexpr double kCrack = 4;  // grid units (2^-28 of a hemicube face's half-width)
 constexpr int kBatch = 32;  // polygons subtracted from the open region at a time
 
+// A conservative raster of a hemicube face's open region (64 x 64 cells over [-S, S]^2 in grid units): a cell is
+// marked when an edge of the open paths passes through it or next to it (one cell's margin) or when the paths enclose
+// its centre (even-odd: Clipper's outer boundaries and holes never cross; a cell no edge reaches lies wholly on one
+// side of every path). A polygon, or a tree node, whose projection's bounding rectangle meets no marked cell lies in
+// directions already covered. In a city the open region's bounding box stays the whole width of a side face (a
+// street open to the horizon), so without it every building in that quarter of the sky was projected and clipped.
+struct OpenCells {
+  static constexpr int kCells = 64, kShift = 23;  // cell width 2^23 grid units: 2^29 / 64
+  std::array<std::uint64_t, kCells> row{};
+  static int cell(ClipperLib::cInt q) {
+    return int(std::clamp<ClipperLib::cInt>((q + ClipperLib::cInt(kGridScale)) >> kShift, 0, kCells - 1));
+  }
+  void mark(int c0, int c1, int r0, int r1) {
+    c0 = std::max(c0, 0), c1 = std::min(c1, kCells - 1), r0 = std::max(r0, 0), r1 = std::min(r1, kCells - 1);
+    if (c0 > c1) return;
+    const std::uint64_t m = (c1 - c0 == 63 ? ~std::uint64_t(0) : ((std::uint64_t(1) << (c1 - c0 + 1)) - 1)) << c0;
+    for (int r = r0; r <= r1; ++r) row[size_t(r)] |= m;
+  }
+  void build(const ClipperLib::Paths& paths) {
+    row.fill(0);
+    const double S = kGridScale, w = 2 * S / kCells;
+    std::vector<double> xs;
+    for (const auto& path : paths)
+      for (size_t k = 0; k < path.size(); ++k) {
+        const auto &a = path[k], &b = path[(k + 1) % path.size()];
+        const int ca = cell(a.X), cb = cell(b.X);
+        if (ca == cb) {
+          mark(ca - 1, ca + 1, cell(std::min(a.Y, b.Y)) - 1, cell(std::max(a.Y, b.Y)) + 1);
+          continue;
+        }
+        // Column by column: the rows the edge spans within the column's x range, one cell wider each way.
+        const double ax = double(a.X), ay = double(a.Y), bx = double(b.X), by = double(b.Y);
+        for (int c = std::min(ca, cb); c <= std::max(ca, cb); ++c) {
+          const double x0 = std::max(std::min(ax, bx), -S + c * w), x1 = std::min(std::max(ax, bx), -S + (c + 1) * w);
+          const double y0 = ay + (by - ay) * (x0 - ax) / (bx - ax), y1 = ay + (by - ay) * (x1 - ax) / (bx - ax);
+          const int r0 = int(std::floor((std::min(y0, y1) + S) / w)), r1 = int(std::floor((std::max(y0, y1) + S) / w));
+          mark(c - 1, c + 1, r0 - 1, r1 + 1);
+        }
+      }
+    for (int r = 0; r < kCells; ++r) {  // centres enclosed (even-odd along the row through them)
+      const double y = -S + (r + 0.5) * w;
+      xs.clear();
+      for (const auto& path : paths)
+        for (size_t k = 0; k < path.size(); ++k) {
+          const auto &a = path[k], &b = path[(k + 1) % path.size()];
+          if ((double(a.Y) > y) == (double(b.Y) > y)) continue;
+          xs.push_back(double(a.X) + (double(b.X) - double(a.X)) * (y - double(a.Y)) / (double(b.Y) - double(a.Y)));
+        }
+      std::sort(xs.begin(), xs.end());
+      for (size_t k = 0; k + 1 < xs.size(); k += 2) {
+        const int c0 = int(std::ceil((xs[k] + S) / w - 0.5)), c1 = int(std::floor((xs[k + 1] + S) / w - 0.5));
+        if (c0 <= c1) mark(c0, c1, r, r);
+      }
+    }
+  }
+  // Some marked cell in the rectangle [u0, u1] x [v0, v1] (grid units).
+  bool any(ClipperLib::cInt u0, ClipperLib::cInt u1, ClipperLib::cInt v0, ClipperLib::cInt v1) const {
+    const int c0 = cell(u0), c1 = cell(u1), r0 = cell(v0), r1 = cell(v1);
+    const std::uint64_t m = (c1 - c0 == 63 ? ~std::uint64_t(0) : ((std::uint64_t(1) << (c1 - c0 + 1)) - 1)) << c0;
+    for (int r = r0; r <= r1; ++r)
+      if (row[size_t(r)] & m) return true;
+    return false;
+  }
+};
+
 // The open directions from x (no patch in them) by exact clipping: the polygons projected onto the hemicube's
 // faces are subtracted from each face (Clipper, integer grid), and what is left is mapped back to directions and
 // integrated. skip_group: the plane group left out (the point's own plane), or -1. first_group: null, or per group
@@ -172,6 +238,7 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
   thread_local ClipperLib::PolyTree tree;
   thread_local ClipperLib::Clipper clipper;
   thread_local std::vector<int> stack;
+  thread_local OpenCells open_cells;
   Moments open;
   for (const CubeFace& F : faces) {
     const Vec3 planes[4] = {F.f - F.ea, F.f + F.ea, F.f - F.eb, F.b0 < 0 ? Vec3(F.f + F.eb) : F.eb};
@@ -216,6 +283,7 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
     };
     const ClipperLib::cInt S = ClipperLib::cInt(kGridScale), v0 = ClipperLib::cInt(F.b0 * kGridScale);
     sky.assign(1, ClipperLib::Path{{-S, v0}, {S, v0}, {S, S}, {-S, S}});
+    open_cells.build(sky);
     // The bounding box of what is still open (grid units), and the planes through x bounding the directions in it.
     ClipperLib::cInt lo_u = -S, hi_u = S, lo_v = v0, hi_v = S;
     Vec3 cone[4];
@@ -263,7 +331,7 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
       };
       for (const ClipperLib::PolyNode* outer : tree.Childs) keep(keep, outer);
       covered.clear();
-      if (!sky.empty()) update_bounds();
+      if (!sky.empty()) update_bounds(), open_cells.build(sky);
     };
     auto in_box = [&] {  // pts' bounding box meets the open region's
       ClipperLib::cInt plo_u = pts[0].X, phi_u = plo_u, plo_v = pts[0].Y, phi_v = plo_v;
@@ -273,7 +341,8 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
         plo_v = std::min(plo_v, q.Y);
         phi_v = std::max(phi_v, q.Y);
       }
-      return !(phi_u <= lo_u || plo_u >= hi_u || phi_v <= lo_v || plo_v >= hi_v);
+      return !(phi_u <= lo_u || plo_u >= hi_u || phi_v <= lo_v || plo_v >= hi_v) &&
+             open_cells.any(plo_u, phi_u, plo_v, phi_v);
     };
     auto skipped = [&](int j, bool hinted_pass) {
       const int grp = M.group[size_t(j)];
@@ -302,7 +371,18 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
       if (!reaches(F.f)) return true;
       for (const Vec3& m : cone)
         if (!reaches(m)) return true;
-      return false;
+      // The box's corners projected onto the face (all in front of x: the box's projection lies in their bounding
+      // rectangle): no open cell there, nothing in the box can be seen.
+      double u0 = INFINITY, u1 = -INFINITY, w0 = INFINITY, w1 = -INFINITY;
+      for (int k = 0; k < 8; ++k) {
+        const Vec3 q = Vec3(k & 1 ? nd.hi.x() : nd.lo.x(), k & 2 ? nd.hi.y() : nd.lo.y(), k & 4 ? nd.hi.z() : nd.lo.z()) - x;
+        const double w = F.f.dot(q);
+        if (!(w > 1e-9 * q.norm())) return false;
+        const double u = F.ea.dot(q) / w, v = F.eb.dot(q) / w;
+        u0 = std::min(u0, u), u1 = std::max(u1, u), w0 = std::min(w0, v), w1 = std::max(w1, v);
+      }
+      auto grid = [](double t) { return ClipperLib::cInt(std::clamp(t, -2.0, 2.0) * kGridScale); };
+      return !open_cells.any(grid(u0) - 1, grid(u1) + 1, grid(w0) - 1, grid(w1) + 1);
     };
     auto distance2 = [&](const Merged::Node& nd) { return (x.cwiseMax(nd.lo).cwiseMin(nd.hi) - x).squaredNorm(); };
     stack.clear();
