@@ -58,6 +58,9 @@ struct BatchKernels {
   // ln |w0 + s[k] u - t v| dt, v of length L > 0 (inv_L = 1 / L), in closed form. w0, u, v: 3 doubles each.
   void (*edge_log)(const double* w0, const double* u, const double* v, double L, double inv_L, const double* s,
                    int count, double* out);
+  // Lambert's contour sum sum_k theta_k n.c_k / |c_k| of the polygon's m corners (xyz, contiguous) seen from x with
+  // normal n (kernel.hpp's signed_contour_sum: signed, no 1/2pi), its edges in the lanes.
+  double (*contour_sum)(const double* x, const double* n, const double* poly, int m);
 };
 constexpr int kMomentRecord = 33;
 

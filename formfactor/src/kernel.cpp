@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "batch.hpp"
 #include "internal.hpp"
 #include "lambert/formfactor/kernel.hpp"
 
@@ -33,19 +34,12 @@ void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double
 }
 
 double signed_contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {
-  const size_t m = poly.size();
-  double sum = 0;
-  Vec3 a = poly[0] - x;
-  for (size_t k = 0; k < m; ++k) {
-    const Vec3& v1 = poly[(k + 1) % m];
-    const Vec3 b = v1 - x;
-    // a x b = a x (b - a): the edge vector is exact, so far points keep their relative accuracy.
-    const Vec3 c = a.cross(v1 - poly[k]);
-    const double cn = c.norm();
-    if (cn > 0) sum += atan2_pos(cn, a.dot(b)) * (n.dot(c) / cn);  // |c| = 0: x on the edge's line or a zero-length edge
-    a = b;
-  }
-  return sum;
+  // Per edge: a = corner - x, c = a x (edge vector) (= a x b: the edge vector is exact, so far points keep their
+  // relative accuracy), the angle atan2(|c|, a . b) with b = next corner - x; |c| = 0 (x on the edge's line or a
+  // zero-length edge) adds nothing. The edges in SIMD lanes (batch.hpp).
+  static_assert(sizeof(Vec3) == 3 * sizeof(double), "corners read as contiguous xyz");
+  if (poly.empty()) return 0;
+  return batch_kernels().contour_sum(x.data(), n.data(), poly.data()->data(), int(poly.size()));
 }
 
 double contour_sum(const Vec3& x, const Vec3& n, std::span<const Vec3> poly) {

@@ -480,11 +480,38 @@ void edge_log(const double* w0, const double* u, const double* v, double L, doub
   }
 }
 
+// The edges of one polygon in the lanes: each edge's term as signed_contour_sum forms it (a = corner - x, e = the
+// edge vector, c = a x e, the angle atan2(|c|, a . (next corner - x))), summed lane by lane, then across the lanes in
+// order (for m <= 8 corners the scalar loop's order).
+double contour_sum(const double* x, const double* n, const double* poly, int m) {
+  vd sum = splat(0);
+  for (int b = 0; b < m; b += W) {
+    vd ax = splat(0), ay = splat(0), az = splat(0), ex = splat(0), ey = splat(0), ez = splat(0), bx = splat(0),
+       by = splat(0), bz = splat(0);
+    for (int k = 0; k < W && b + k < m; ++k) {
+      const double* p = poly + 3 * (b + k);
+      const double* q = poly + 3 * (b + k + 1 == m ? 0 : b + k + 1);
+      ax[k] = p[0] - x[0], ay[k] = p[1] - x[1], az[k] = p[2] - x[2];
+      ex[k] = q[0] - p[0], ey[k] = q[1] - p[1], ez[k] = q[2] - p[2];
+      bx[k] = q[0] - x[0], by[k] = q[1] - x[1], bz[k] = q[2] - x[2];
+    }
+    const vd cx = ay * ez - az * ey, cy = az * ex - ax * ez, cz = ax * ey - ay * ex;
+    const vd zc = vsqrt(cx * cx + cy * cy + cz * cz);
+    const vd w = ax * bx + ay * by + az * bz;
+    const vd nc = n[0] * cx + n[1] * cy + n[2] * cz;
+    const vl ok = zc > 0;
+    sum += sel(ok, atan2_pos(zc, w) * (nc / sel(ok, zc, splat(1.0))), splat(0));
+  }
+  double s = 0;
+  for (int k = 0; k < W; ++k) s += sum[k];
+  return s;
+}
+
 }  // namespace
 
 const BatchKernels& LAMBERT_CAT(batch_kernels_, LAMBERT_ISA_SUFFIX)() {
   static const BatchKernels k{LAMBERT_ISA_NAME, &classify,     &eval_points, &eval_centroid,
-                              &transpose,       &gather_links, &edge_log};
+                              &transpose,       &gather_links, &edge_log,    &contour_sum};
   return k;
 }
 
