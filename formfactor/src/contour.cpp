@@ -1,5 +1,6 @@
 // Double line integral for near pairs: A_i F_ij = (1/2pi) sum_ab (u_a . v_b) int_0^1 int_0^1 ln r dt ds.
-// The inner integral over edge b is elementary; the outer one over edge a is adaptive Gauss-Kronrod (7/15),
+// The inner integral over edge b is elementary (batch.hpp's edge_log, a panel's 15 nodes per call); the outer one over
+// edge a is adaptive Gauss-Kronrod (7/15),
 // split where edge a passes closest to edge b (the integrand's derivative is log-singular where edges touch).
 #include <algorithm>
 #include <cmath>

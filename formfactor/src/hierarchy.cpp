@@ -54,7 +54,7 @@ struct TreeBuilder {
   // ~1e-9 m: coordinates equal in the file (a lattice city's rows of buildings) come out unequal by that much, and
   // ordering them by their exact values (or picking the larger of two equal extents) built another tree.
   double eps_c = 0;
-  std::vector<int> rank;  // scratch: per position in perm, its value's rank among the node's patches
+  std::vector<int> rank;  // scratch, per patch: the index of its run of equal values among its node's patches
 
   bool mixed(std::span<const int> c, int begin, int end) const {
     if (c.empty()) return false;
