@@ -546,10 +546,14 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                                       : "",
                        h.pairs_cell_culled, h.seconds_enclosures);
     if (h.dark_patches > 0)
-      s += fmt::format("  dark         {} patches that send nothing (black and not emitting, or in one of {} closed cells "
-                       "without an emitter); {} node pairs between them refused without a link or a ray (their rows "
-                       "are not resolved: radiance 0 in any solution)\n",
-                       h.dark_patches, h.dark_cells, h.pairs_dark_culled);
+      s += fmt::format("  dark         {} patches that send nothing ({}); {} node pairs between them refused without a "
+                       "link or a ray (their rows are not resolved: radiance 0 in any solution)\n",
+                       h.dark_patches,
+                       h.dark_patches == h.patches && h.dark_cells == 0
+                           ? std::string("nothing in the scene emits")
+                           : fmt::format("black and not emitting, or in one of {} closed cells without an emitter",
+                                         h.dark_cells),
+                       h.pairs_dark_culled);
     if (h.portals > 0)
       s += fmt::format("  portals      {} openings closed by portals: {} rooms; {} node pairs in different rooms whose "
                        "shaft meets no portal between them refused without rays ({:.2f} s)\n",
