@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "../formfactor/src/batch.hpp"
+#include "batch_kernels_util.hpp"
 #include "lambert/mesh/geometry.hpp"
 
 namespace lambert {
@@ -16,13 +16,7 @@ namespace {
 
 namespace fd = formfactor::detail;
 
-std::vector<const fd::BatchKernels*> supported_kernels() {
-  std::vector<const fd::BatchKernels*> v{&fd::batch_kernels_generic()};
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) v.push_back(&fd::batch_kernels_avx2());
-  if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq")) v.push_back(&fd::batch_kernels_avx512());
-  return v;
-}
+using batchtest::supported_kernels;
 
 // The reference and the size of its terms (what rounding in double is relative to).
 struct Ref {

@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "../formfactor/src/batch.hpp"
+#include "batch_kernels_util.hpp"
 #include "lambert/mesh/geometry.hpp"
 
 namespace lambert {
@@ -90,13 +90,7 @@ double expanded(const fd::BatchKernels& K, const std::vector<Cluster>& src, cons
   return n.dot(G);
 }
 
-std::vector<const fd::BatchKernels*> supported_kernels() {
-  std::vector<const fd::BatchKernels*> v{&fd::batch_kernels_generic()};
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) v.push_back(&fd::batch_kernels_avx2());
-  if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq")) v.push_back(&fd::batch_kernels_avx512());
-  return v;
-}
+using batchtest::supported_kernels;
 
 // The expansion is of second order in the source offsets b and the receiver offset a: its error relative to the
 // directly summed kernel falls like (size / distance)^3. 13 links per call (one full step of 8 lanes and a padded
