@@ -549,7 +549,7 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
       s += fmt::format("  dark         {} patches that send nothing ({}); {} node pairs between them refused without a "
                        "link or a ray (their rows are not resolved: radiance 0 in any solution)\n",
                        h.dark_patches,
-                       h.dark_patches == h.patches && h.dark_cells == 0
+                       h.dark_patches == h.patches  // every patch dark: none emits (an emitter is bright)
                            ? std::string("nothing in the scene emits")
                            : fmt::format("black and not emitting, or in one of {} closed cells without an emitter",
                                          h.dark_cells),
