@@ -424,6 +424,24 @@ TEST_F(HierarchyCli, FormfactorsDoNotDependOnTheMaterials) {
   EXPECT_EQ(a["hierarchy"]["far_links"], b["hierarchy"]["far_links"]);
 }
 
+// A scene where nothing emits: the solve says so, and the summary's dark line names that as the reason (it called
+// every grey surface "black and not emitting").
+TEST_F(HierarchyCli, SceneWithoutEmittersIsNamedAsSuch) {
+  const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
+  {
+    std::ofstream m(path("off.json"));
+    m << R"({"materials": {"light": {"emission": 0}}})";
+  }
+  const auto r = test::run("solve " + scene + " --materials " + path("off.json") + " -o " + path("off.vtu") +
+                           " --operator hierarchical --max-edge 0.1");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("no emitter"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("patches that send nothing (nothing in the scene emits)"), std::string::npos) << r.output;
+  const auto lit = test::run("solve " + scene + " -o " + path("lit.vtu") + " --operator hierarchical --max-edge 0.1");
+  ASSERT_EQ(lit.status, 0) << lit.output;
+  EXPECT_EQ(lit.output.find("nothing in the scene emits"), std::string::npos) << lit.output;
+}
+
 // --operator auto prints its choice and why; an impossible request is refused with the estimate (exit 1).
 TEST_F(HierarchyCli, OperatorChoicePrintedAndUnsupportedCombinationsRefused) {
   const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
