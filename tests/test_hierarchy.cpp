@@ -256,11 +256,9 @@ TEST(Hierarchy, DeterministicForAnyThreadCount) {
   for (int i = 0; i < n; ++i) ASSERT_EQ(y[0][i], y[1][i]) << "row " << i << ": 1 thread vs 2 threads";
 }
 
-// A build that cannot fit is refused before anything large is allocated, naming the estimate and what to change.
 // A lattice city (a ground of 3.7 m quads, 3 x 3 blocks on it) built where it is and moved by (512345.37, 4123456.81,
-// 31.3) m,
-// as GIS coordinates come: the corners of the moved copy are rounded by ~1e-9 m, so coordinates equal in the first
-// (rows of blocks, the ground's grid lines) are unequal by that much in the second. The tree must not follow those
+// 31.3) m, as GIS coordinates come: the corners of the moved copy are rounded by ~1e-9 m, so coordinates equal in the
+// first (rows of blocks, the ground's grid lines) are unequal by that much in the second. The tree must not follow those
 // differences: the same links (counted; visibility off, so that only the tree and the links' tests decide) and row
 // sums within 1e-5. Ordering centroids by their exact values, the two trees differed: 19,806 against 19,056 links,
 // row sums 1.2e-4 apart. With the tree the same they are 1.8e-6 apart (the dense rows 1e-11): the links' own tests
@@ -300,6 +298,7 @@ TEST(Hierarchy, TreeDoesNotDependOnWhereTheModelSits) {
   EXPECT_LE(worst, 1e-5) << "patch " << at;
 }
 
+// A build that cannot fit is refused before anything large is allocated, naming the estimate and what to change.
 TEST(Hierarchy, RefusesWhenEstimateExceedsMemory) {
   const mesh::PatchGeometry g = polys(mesh::shapes::box(Vec3::Zero(), Vec3::Ones(), 20, true));
   HierarchyOptions ho;
