@@ -53,19 +53,37 @@ inline bool any(vl m) {
 inline vd vmax(vd a, vd b) { return a > b ? a : b; }
 inline vd vmin(vd a, vd b) { return a < b ? a : b; }
 
-// atan2(z, w) for z >= 0, in [0, pi] (atan_reduced.hpp; ~1 ulp).
-inline vd atan2_pos(vd z, vd w) {
-  const vd aw = vabs(w);
-  const vd mx = vmax(z, aw), mn = vmin(z, aw);
-  const vl big = mn > kAtanSplit * mx;
-  const vd num = sel(big, mn - mx, mn);
-  vd den = sel(big, mn + mx, mx);
-  den = sel(den > 0, den, splat(1.0));
-  const vd at = atan_reduced(num / den);
-  const vd phi = sel(big, (kPi / 4) + (at + kPio4Tail), at);
-  vd th = sel(z > aw, (kPi / 2) - phi, phi);
-  return sel(w < 0, kPi - th, th);
+template <class V>
+constexpr int lanes_of() {
+  return int(sizeof(V) / sizeof(double));
 }
+template <class V>
+inline V sqrt_v(V x) {
+  V r;
+  for (int k = 0; k < lanes_of<V>(); ++k) r[k] = __builtin_sqrt(x[k]);
+  return r;
+}
+template <class V>
+inline V abs_v(V x) {
+  V r;
+  for (int k = 0; k < lanes_of<V>(); ++k) r[k] = __builtin_fabs(x[k]);
+  return r;
+}
+// atan2(z, w) for z >= 0, in [0, pi] (atan_reduced.hpp; ~1 ulp), any width.
+template <class V>
+inline V atan2_pos_v(V z, V w) {
+  const V aw = abs_v(w);
+  const V mx = z > aw ? z : aw, mn = z > aw ? aw : z;
+  const auto big = mn > kAtanSplit * mx;
+  const V num = big ? mn - mx : mn;
+  V den = big ? mn + mx : mx;
+  den = den > 0 ? den : V{} + 1.0;
+  const V at = atan_reduced(num / den);
+  const V phi = big ? (kPi / 4) + (at + kPio4Tail) : at;
+  const V th = z > aw ? (kPi / 2) - phi : phi;
+  return w < 0 ? kPi - th : th;
+}
+inline vd atan2_pos(vd z, vd w) { return atan2_pos_v(z, w); }
 
 struct Quad {
   vd x[4], y[4], z[4];
@@ -433,36 +451,6 @@ void gather_links(const double* rec, const double* ca, const int* src, const flo
 // The contour kernels below run kGatherLanes wide (8 on AVX-512, 4 on AVX2, 2 on the baseline), on the same grounds
 // as gather_links: 8 lanes of doubles on AVX2 spilled their registers to the stack (udales' assembly with
 // LAMBERT_ISA=avx2 was slower than the scalar code they replaced: 4.9 against 4.2 s).
-template <class V>
-constexpr int lanes_of() {
-  return int(sizeof(V) / sizeof(double));
-}
-template <class V>
-inline V sqrt_v(V x) {
-  V r;
-  for (int k = 0; k < lanes_of<V>(); ++k) r[k] = __builtin_sqrt(x[k]);
-  return r;
-}
-template <class V>
-inline V abs_v(V x) {
-  V r;
-  for (int k = 0; k < lanes_of<V>(); ++k) r[k] = __builtin_fabs(x[k]);
-  return r;
-}
-// atan2(z, w) for z >= 0, in [0, pi] (as atan2_pos above, any width).
-template <class V>
-inline V atan2_pos_v(V z, V w) {
-  const V aw = abs_v(w);
-  const V mx = z > aw ? z : aw, mn = z > aw ? aw : z;
-  const auto big = mn > kAtanSplit * mx;
-  const V num = big ? mn - mx : mn;
-  V den = big ? mn + mx : mx;
-  den = den > 0 ? den : V{} + 1.0;
-  const V at = atan_reduced(num / den);
-  const V phi = big ? (kPi / 4) + (at + kPio4Tail) : at;
-  const V th = z > aw ? (kPi / 2) - phi : phi;
-  return w < 0 ? kPi - th : th;
-}
 // ln x for positive normal x, not subnormal (Cephes log: x = m 2^e with m in [sqrt(1/2), sqrt(2)), ln m = z - z^2/2 +
 // z^3 P(z) / Q(z) for z = m - 1, ln 2 split in two so that e ln 2 adds no rounding; ~1 ulp).
 template <class V>
