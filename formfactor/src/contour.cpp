@@ -104,7 +104,6 @@ ContourResult contour_pair(std::span<const Vec3> Pi, std::span<const Vec3> Pj, d
   double total = 0, total_err = 0;
   const BatchKernels& K = batch_kernels();
   std::vector<double> cuts;
-  std::vector<Interval> heap_store;
   for (size_t a = 0; a < mi; ++a) {
     const double La2 = U[a].squaredNorm();
     if (!(La2 > 0)) continue;

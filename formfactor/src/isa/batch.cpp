@@ -32,27 +32,6 @@ inline vd gather(const double* a, const int* idx) {
   for (int k = 0; k < W; ++k) v[k] = a[idx[k]];
   return v;
 }
-inline vd vsqrt(vd x) {
-  vd r;
-  for (int k = 0; k < W; ++k) r[k] = __builtin_sqrt(x[k]);
-  return r;
-}
-inline vd vabs(vd x) {
-  vd r;
-  for (int k = 0; k < W; ++k) r[k] = __builtin_fabs(x[k]);
-  return r;
-}
-inline vd sel(vl m, vd a, vd b) { return m ? a : b; }
-inline bool any(vl m) {
-  long long a[W];
-  std::memcpy(a, &m, sizeof m);
-  long long r = 0;
-  for (int k = 0; k < W; ++k) r |= a[k];
-  return r != 0;
-}
-inline vd vmax(vd a, vd b) { return a > b ? a : b; }
-inline vd vmin(vd a, vd b) { return a < b ? a : b; }
-
 template <class V>
 constexpr int lanes_of() {
   return int(sizeof(V) / sizeof(double));
@@ -69,6 +48,19 @@ inline V abs_v(V x) {
   for (int k = 0; k < lanes_of<V>(); ++k) r[k] = __builtin_fabs(x[k]);
   return r;
 }
+inline vd vsqrt(vd x) { return sqrt_v(x); }
+inline vd vabs(vd x) { return abs_v(x); }
+inline vd sel(vl m, vd a, vd b) { return m ? a : b; }
+inline bool any(vl m) {
+  long long a[W];
+  std::memcpy(a, &m, sizeof m);
+  long long r = 0;
+  for (int k = 0; k < W; ++k) r |= a[k];
+  return r != 0;
+}
+inline vd vmax(vd a, vd b) { return a > b ? a : b; }
+inline vd vmin(vd a, vd b) { return a < b ? a : b; }
+
 // atan2(z, w) for z >= 0, in [0, pi] (atan_reduced.hpp; ~1 ulp), any width.
 template <class V>
 inline V atan2_pos_v(V z, V w) {
