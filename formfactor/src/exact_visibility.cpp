@@ -34,6 +34,8 @@ struct ExactScratch {
   ClipperLib::Paths convex;                            // the projections with repeated corners removed
   std::vector<std::array<double, 2>> removed;          // per edge: parameter intervals inside other projections
   std::vector<std::uint8_t> gone;                      // per occluder of a pair: in another's umbra (left out)
+  std::vector<int> surv_solid;                         // per clipped occluder: its convex solid, or -1
+  std::vector<int> outside;                            // solids x is outside of (their back faces left out)
 };
 
 void ExactScratchDeleter::operator()(ExactScratch* s) const { delete s; }
@@ -234,6 +236,72 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
   return total;
 }
 
+// The convex hull of the corners of the clipped occluders S.surv[k], k < count with pick(k), projected from x onto
+// the target's plane (height hx of x above it, t0 = nt . target[0]; frame tc, u, v), lifted back to that plane, into
+// out (counter-clockwise in (u, v), collinear corners dropped). False if it has no area (fewer than 3 distinct
+// corners).
+template <class Pick>
+bool projected_hull(const Vec3& x, const Vec3& nt, double t0, double hx, const Vec3& tc, const Vec3& u, const Vec3& v,
+                    size_t count, const Pick& pick, ExactScratch& S, std::vector<Vec3>& out) {
+  S.uv.clear();
+  for (size_t k = 0; k < count; ++k)
+    if (pick(k))
+      for (const Vec3& q : S.surv[k]) {
+        const double hq = nt.dot(q) - t0;  // as for the union: a corner on the plane through x moves far outside
+        const Vec3 y = x + (q - x) * (hx / std::max(hx - hq, 1e-12 * hx));
+        S.uv.push_back({u.dot(y - tc), v.dot(y - tc)});
+      }
+  // Andrew's monotone chain.
+  std::sort(S.uv.begin(), S.uv.end());
+  const size_t m = S.uv.size();
+  S.hull2.resize(2 * m + 1);
+  size_t h = 0;
+  auto turn = [](const std::array<double, 2>& o, const std::array<double, 2>& a, const std::array<double, 2>& b) {
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+  };
+  for (size_t k = 0; k < m; ++k) {
+    while (h >= 2 && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
+    S.hull2[h++] = S.uv[k];
+  }
+  for (size_t k = m - 1, lower = h + 1; m > 0 && k-- > 0;) {
+    while (h >= lower && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
+    S.hull2[h++] = S.uv[k];
+  }
+  if (h < 4) return false;  // the last corner repeats the first
+  out.clear();
+  for (size_t k = 0; k + 1 < h; ++k) out.push_back(tc + S.hull2[k][0] * u + S.hull2[k][1] * v);
+  return true;
+}
+
+// S.surv[0, count) with the clipped faces of each convex solid (S.surv_solid) replaced by their projected hull (one
+// convex polygon in the target's plane, its own projection from x); hulls without area dropped. Returns the new count.
+size_t hull_per_solid(const Vec3& x, const Vec3& nt, double t0, double hx, const Vec3& tc, const Vec3& u, const Vec3& v,
+                      size_t count, ExactScratch& S) {
+  constexpr int kTaken = -2;  // a face already in an earlier face's hull
+  size_t w = 0;
+  for (size_t i = 0; i < count; ++i) {
+    const int sol = S.surv_solid[i];
+    if (sol == kTaken) continue;
+    int faces = 0;
+    if (sol >= 0)
+      for (size_t j = i; j < count; ++j) faces += S.surv_solid[j] == sol;
+    if (faces < 2) {  // not a solid's, or its only face: kept as it is
+      if (w != i) std::swap(S.surv[w], S.surv[i]), S.surv_convex[w] = S.surv_convex[i];
+      ++w;
+      continue;
+    }
+    const bool area = projected_hull(x, nt, t0, hx, tc, u, v, count,
+                                     [&](size_t k) { return k >= i && S.surv_solid[k] == sol; }, S, S.lifted);
+    for (size_t j = i + 1; j < count; ++j)
+      if (S.surv_solid[j] == sol) S.surv_solid[j] = kTaken;
+    if (!area) continue;
+    std::swap(S.surv[w], S.lifted);
+    S.surv_convex[w] = true;
+    ++w;
+  }
+  return w;
+}
+
 }  // namespace
 
 double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target, const Vec3& nt,
@@ -286,10 +354,22 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   for (const Occluder& o : occluders) one_solid = one_solid && o.solid == occluders[0].solid;
   if (one_solid)
     for (const Occluder& o : occluders) cull = cull || (o.cull && o.inner.dot(x) < o.inner_offset);
+  // Several solids (a street of buildings, furniture): per solid, the faces x sees from behind are left out where x
+  // is outside it (in front of one of its faces), as for one solid below.
+  S.outside.clear();
+  if (!one_solid)
+    for (const Occluder& o : occluders)
+      if (o.solid >= 0 && o.cull && o.inner.dot(x) < o.inner_offset &&
+          std::find(S.outside.begin(), S.outside.end(), o.solid) == S.outside.end())
+        S.outside.push_back(o.solid);
   // Occluders clipped to the cone.
   size_t count = 0;
+  bool grouped = false;  // two clipped faces of one solid
   for (const Occluder& o : occluders) {
     if (cull && o.cull && o.inner.dot(x) >= o.inner_offset) continue;
+    if (!one_solid && o.solid >= 0 && o.cull && o.inner.dot(x) >= o.inner_offset &&
+        std::find(S.outside.begin(), S.outside.end(), o.solid) != S.outside.end())
+      continue;
     S.a.assign(o.poly.begin(), o.poly.end());
     for (const auto& pl : S.planes) {
       // Most planes keep the whole polygon (or none of it): decided before clip_keep copies anything.
@@ -310,12 +390,20 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
       if (S.a.empty()) break;
     }
     if (S.a.size() < 3) continue;
-    if (S.surv.size() <= count) S.surv.emplace_back(), S.surv_convex.push_back(false);
+    if (S.surv.size() <= count) S.surv.emplace_back(), S.surv_convex.push_back(false), S.surv_solid.push_back(-1);
     std::swap(S.surv[count], S.a);
     S.surv_convex[count] = o.convex;
+    S.surv_solid[count] = one_solid ? -1 : o.solid;
+    for (size_t k = 0; k < count && !grouped && o.solid >= 0; ++k) grouped = S.surv_solid[k] == o.solid;
     ++count;
   }
   if (count == 0) return 0;
+  // The clipped faces of one convex solid C become one convex polygon: a segment from x to the target that meets C
+  // crosses its surface inside the cone (a convex cone: the target's, or its bounding rectangle's), so the union of
+  // the faces' projections is the projection of C within the cone, the convex hull of their projected corners (as for
+  // one solid below). The hull is lifted to the target's plane, where it is its own projection. Fewer, convex
+  // projections for the union (a street of buildings: one per building instead of one per face).
+  if (grouped) count = hull_per_solid(x, nt, t0, hx, tc, u, v, count, S);
   if (count == 1 && target_convex) return contour_sum(x, n, S.surv[0]);
   for (size_t k = 0; k < count; ++k)
     if (S.surv_convex[k] && covers(x, target, S.surv[k])) return contour_sum(x, n, target);
@@ -324,32 +412,7 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   // of the clipped faces' projected corners (each of them a point of C in the cone; the hull lies in the target).
   // No Boolean operation, no snapping.
   if (one_solid) {
-    S.uv.clear();
-    for (size_t k = 0; k < count; ++k)
-      for (const Vec3& q : S.surv[k]) {
-        const double hq = nt.dot(q) - t0;  // as below: a corner on the plane through x moves far outside
-        const Vec3 y = x + (q - x) * (hx / std::max(hx - hq, 1e-12 * hx));
-        S.uv.push_back({u.dot(y - tc), v.dot(y - tc)});
-      }
-    // Andrew's monotone chain, counter-clockwise in (u, v), collinear corners dropped.
-    std::sort(S.uv.begin(), S.uv.end());
-    const size_t m = S.uv.size();
-    S.hull2.resize(2 * m + 1);
-    size_t h = 0;
-    auto turn = [](const std::array<double, 2>& o, const std::array<double, 2>& a, const std::array<double, 2>& b) {
-      return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-    };
-    for (size_t k = 0; k < m; ++k) {
-      while (h >= 2 && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
-      S.hull2[h++] = S.uv[k];
-    }
-    for (size_t k = m - 1, lower = h + 1; k-- > 0;) {
-      while (h >= lower && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
-      S.hull2[h++] = S.uv[k];
-    }
-    if (h < 4) return 0;  // fewer than 3 distinct corners (the last repeats the first): no area
-    S.lifted.clear();
-    for (size_t k = 0; k + 1 < h; ++k) S.lifted.push_back(tc + S.hull2[k][0] * u + S.hull2[k][1] * v);
+    if (!projected_hull(x, nt, t0, hx, tc, u, v, count, [](size_t) { return true; }, S, S.lifted)) return 0;
     return std::abs(signed_contour_sum(x, n, S.lifted)) / (2 * kPi);
   }
   // Union of the projections on the target's plane (integer coordinates, kSnap per R), intersected with the
@@ -1880,6 +1943,7 @@ std::vector<Vec3> solid_centres(const mesh::PatchGeometry& g, const std::vector<
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders,
                                          double scale) {
   MergedOccluders out;
+  constexpr int kUnset = -2;  // a region's solid before its members are seen
   out.of_patch.assign(size_t(g.size()), -1);
   if (!(scale > 0)) return out;
   ConvexSolids solids = find_convex_solids(g, occluders, scale);
@@ -1930,10 +1994,7 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
         convex = (poly[(k + 1) % poly.size()] - poly[k]).cross(poly[(k + 2) % poly.size()] - poly[(k + 1) % poly.size()]).dot(n) >= 0;
       out.polys.push_back(std::move(poly));
       out.convex.push_back(convex);
-      // A region is a face of a convex solid when every member of its plane is a face of that one solid.
-      int sol = out.solid_of_patch[size_t(members[0])];
-      for (int p : members) sol = out.solid_of_patch[size_t(p)] == sol ? sol : -1;
-      out.solid.push_back(sol);
+      out.solid.push_back(kUnset);
     }
     // Each member belongs to the region containing its centroid (strictly inside a convex patch's own corners).
     for (size_t k = 0; k < members.size(); ++k) {
@@ -1943,9 +2004,16 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
       for (size_t r = 0; r < uni.size(); ++r)
         if (ClipperLib::PointInPolygon(ip, uni[r]) != 0) {
           out.of_patch[size_t(members[k])] = first + int(r);
+          // A region is a face of a convex solid when every member in it is a face of that one solid (a roof among
+          // others at its height, a wall in line with its neighbours' along a street).
+          int& sol = out.solid[size_t(first) + r];
+          const int own = out.solid_of_patch[size_t(members[k])];
+          sol = sol == kUnset || sol == own ? own : -1;
           break;
         }
     }
+    for (size_t r = size_t(first); r < out.solid.size(); ++r)
+      if (out.solid[r] == kUnset) out.solid[r] = -1;
   }
   return out;
 }
