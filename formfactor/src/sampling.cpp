@@ -46,6 +46,19 @@ void sample_patch(const mesh::PatchGeometry& g, const PatchData& P, int p, int k
   // T[0]T[1] and T[0]T[2] (5 % of the area each): on a sliver whose short edge touches an occluder, the shadow
   // there was missed and the visible fraction biased high, at any number of rays.
   const int t0 = g.triangle_offsets[p], t1 = g.triangle_offsets[p + 1];
+  if (t1 - t0 == 1) {  // one triangle (most patches of imported meshes): u / area directly, no areas to add up
+    const auto& T = g.triangles[t0];
+    const Vec3 &A = g.points[T[0]], &B = g.points[T[1]], &C = g.points[T[2]];
+    const double inv_n = 1.0 / n, inv_k2 = 1.0 / k2;
+    for (int a = 0; a < k1; ++a)
+      for (int b = 0; b < k2; ++b) {
+        const int k = a * k2 + b;
+        const double su = std::sqrt(std::min((k + jitter(seed, 2 * k)) * inv_n, 1.0));
+        const double v = (b + jitter(seed, 2 * k + 1)) * inv_k2;
+        out.push_back((1 - su) * A + su * (1 - v) * B + su * v * C);
+      }
+    return;
+  }
   thread_local std::vector<double> areas;  // the triangles' areas, once per call (not per sample)
   areas.clear();
   for (int t = t0; t < t1; ++t) {

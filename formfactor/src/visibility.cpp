@@ -34,23 +34,24 @@ namespace {
 // can meet a patch in that plane only at its start, where it touches a coincident patch: the back of a
 // two-sided face, or a one-sided face modelled back to back with a. Such hits are not occlusion.
 struct Planes {
-  std::vector<Vec3> n;
-  std::vector<double> d;
+  std::vector<std::array<double, 4>> nd;  // per patch: n (unit) and d, together (one cache line per hit)
   double eps = 0;  // plane distance tolerance: 1e-9 x the scene's bounding-box diagonal
   Planes() = default;
   Planes(const mesh::PatchGeometry& g, const Vec3& centre) {
     Eigen::AlignedBox3d box;
     for (const Vec3& v : g.points) box.extend(v);
     eps = box.isEmpty() ? 0.0 : 1e-9 * box.diagonal().norm();
+    nd.reserve(size_t(g.size()));
     for (int p = 0; p < g.size(); ++p) {
-      n.push_back(g.normal[p]);
-      d.push_back(g.normal[p].dot(g.centroid[p] - centre));
+      const Vec3& n = g.normal[p];
+      nd.push_back({n.x(), n.y(), n.z(), n.dot(g.centroid[p] - centre)});
     }
   }
   bool coplanar(int p, int q) const {
-    const double c = n[p].dot(n[q]);
+    const auto &a = nd[size_t(p)], &b = nd[size_t(q)];
+    const double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     if (std::abs(c) < 1 - 1e-9) return false;
-    return std::abs(d[p] - (c > 0 ? d[q] : -d[q])) <= eps;
+    return std::abs(a[3] - (c > 0 ? b[3] : -b[3])) <= eps;
   }
   // A hit on patch p does not block a ray between patches a and b.
   bool ignored(int p, int a, int b) const {
@@ -75,9 +76,15 @@ bool segment_meets(const Vec3& o, const Vec3& d, const Vec3& A, const Vec3& B, c
   return t > 0 && t < 1;
 }
 
+// Per Embree primitive: its patch and 1 / its smallest altitude (1/m), together (one cache line per hit).
+struct PrimInfo {
+  int patch;
+  float inv_height;
+};
+
 struct IgnoreContext {
   RTCIntersectContext ctx;
-  const int* tri_patch;
+  const PrimInfo* prim_info;
   const Planes* planes;
   int a, b;
   // Per ray (indexed by the ray's id) when not null: the pair each ray ignores, instead of (a, b).
@@ -88,7 +95,6 @@ struct IgnoreContext {
   const Vec3* to = nullptr;
   const Vec3* points = nullptr;
   const std::array<int, 3>* tris = nullptr;
-  const float* inv_height = nullptr;  // per primitive: 1 / the triangle's smallest altitude (1/m)
   double slack = 0;                   // bound on a float hit point's error at normal incidence (m)
 };
 
@@ -101,29 +107,31 @@ void ignore_filter(const RTCFilterFunctionNArguments* args) {
   for (unsigned k = 0; k < args->N; ++k) {
     if (args->valid[k] == 0) continue;
     const unsigned prim = RTCHitN_primID(args->hit, args->N, k);
-    const int patch = c->tri_patch[prim];
+    const PrimInfo info = c->prim_info[prim];
     const unsigned id = RTCRayN_id(args->ray, args->N, k);
     int a = c->a, b = c->b;
     if (c->ray_a) {
       a = c->ray_a[id];
       b = c->ray_b[id];
     }
-    if (c->planes->ignored(patch, a, b)) {
+    if (c->planes->ignored(info.patch, a, b)) {
       args->valid[k] = 0;
       continue;
     }
     // A hit farther than the float error from the triangle's edges and the segment's ends is a hit in double
     // precision too: kept without the test (it reads the double-precision corners, which at a million patches
-    // are out of cache). The error grows as the ray grazes the triangle: 1 / cos.
+    // are out of cache). The error grows as the ray grazes the triangle: 1 / cos, cos = |ng.d| / (|ng| |d|). The
+    // margins err = slack / cos along the triangle (times 1 / its height in u, v) and err / |d| along the segment
+    // (in t), compared multiplied out by |ng.d| (no division).
     const Vec3 from = c->from[id], d = c->to[id] - from;
     const Vec3 ng(RTCHitN_Ng_x(args->hit, args->N, k), RTCHitN_Ng_y(args->hit, args->N, k),
                   RTCHitN_Ng_z(args->hit, args->N, k));
-    const double len = d.norm(), cos = std::abs(ng.dot(d)) / (ng.norm() * len);
-    if (cos > 1e-3) {
-      const double err = c->slack / cos, t = RTCRayN_tfar(args->ray, args->N, k);
-      const double u = RTCHitN_u(args->hit, args->N, k), v = RTCHitN_v(args->hit, args->N, k);
-      const double mb = err * c->inv_height[prim], mt = err / len;
-      if (t > mt && t < 1 - mt && u > mb && v > mb && 1 - u - v > mb) continue;
+    const double ng2 = ng.squaredNorm(), nd = std::abs(ng.dot(d)), nlen = std::sqrt(ng2), G = nlen * d.norm();
+    if (nd > 1e-3 * G) {
+      const double t = RTCRayN_tfar(args->ray, args->N, k) * nd;
+      const double u = RTCHitN_u(args->hit, args->N, k) * nd, v = RTCHitN_v(args->hit, args->N, k) * nd;
+      const double mb = c->slack * G * info.inv_height, mt = c->slack * nlen;
+      if (t > mt && t < nd - mt && u > mb && v > mb && nd - u - v > mb) continue;
     }
     const std::array<int, 3>& T = c->tris[prim];
     if (!segment_meets(from, d, c->points[T[0]], c->points[T[1]], c->points[T[2]])) args->valid[k] = 0;
@@ -148,10 +156,11 @@ class EmbreeVisibility final : public Visibility {
     for (const Vec3& v : g.points) box.extend(v);
     if (!box.isEmpty()) centre_ = box.center();
     planes_ = Planes(g, centre_);
-    detail::add_patch_triangles(device_, scene_, g, occluders, centre_, tri_patch_);
+    std::vector<int> tri_patch;  // per Embree primitive: its patch
+    detail::add_patch_triangles(device_, scene_, g, occluders, centre_, tri_patch);
     // The same triangles in double precision, by primitive (add_patch_triangles' order), for the filter.
     points_ = g.points;
-    tris_.reserve(tri_patch_.size());
+    tris_.reserve(tri_patch.size());
     auto add = [&](int p) {
       for (int k = g.triangle_offsets[p]; k < g.triangle_offsets[p + 1]; ++k) tris_.push_back(g.triangles[k]);
     };
@@ -165,12 +174,13 @@ class EmbreeVisibility final : public Visibility {
     double far = 0;
     for (const Vec3& v : g.points) far = std::max(far, (v - centre_).lpNorm<Eigen::Infinity>());
     slack_ = 256 * 0x1.0p-24 * far;
-    inv_height_.reserve(tris_.size());
-    for (const auto& T : tris_) {
+    prim_info_.reserve(tris_.size());
+    for (size_t t = 0; t < tris_.size(); ++t) {
+      const auto& T = tris_[t];
       const Vec3 &A = points_[T[0]], &B = points_[T[1]], &C = points_[T[2]];
       const double twice_area = (B - A).cross(C - A).norm();
       const double longest = std::max({(B - A).norm(), (C - B).norm(), (A - C).norm()});
-      inv_height_.push_back(twice_area > 0 ? float(longest / twice_area) : INFINITY);
+      prim_info_.push_back({tri_patch[t], twice_area > 0 ? float(longest / twice_area) : INFINITY});
     }
     rtcCommitScene(scene_);
   }
@@ -199,13 +209,12 @@ class EmbreeVisibility final : public Visibility {
     rtcInitIntersectContext(&c.ctx);
     c.ctx.filter = &ignore_filter;
     c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // one call = rays between two patches or two clusters
-    c.tri_patch = tri_patch_.data();
+    c.prim_info = prim_info_.data();
     c.planes = &planes_;
     c.a = ignore_a;
     c.b = ignore_b;
     c.points = points_.data();
     c.tris = tris_.data();
-    c.inv_height = inv_height_.data();
     c.slack = slack_;
     constexpr size_t kChunk = 64;
     RTCRay rays[kChunk];
@@ -243,10 +252,9 @@ class EmbreeVisibility final : public Visibility {
   RTCScene scene_ = nullptr;
   Vec3 centre_ = Vec3::Zero();  // subtracted from every coordinate before it becomes a float
   Planes planes_;
-  std::vector<int> tri_patch_;
   std::vector<Vec3> points_;               // the geometry's corners (double)
   std::vector<std::array<int, 3>> tris_;  // per Embree primitive: its triangle's corners in points_
-  std::vector<float> inv_height_;          // per Embree primitive: 1 / its smallest altitude (1/m)
+  std::vector<PrimInfo> prim_info_;        // per Embree primitive
   double slack_ = 0;                       // float error bound of a hit point at normal incidence (m)
 };
 
