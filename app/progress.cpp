@@ -31,6 +31,11 @@ std::string progress_timing(double fraction, double elapsed) {
   return out;
 }
 
+bool progress_due(bool tty, int decile, int last_decile, double since_last_line) {
+  if (tty) return since_last_line >= 0.1;
+  return decile > last_decile || since_last_line >= kProgressHeartbeat;
+}
+
 Progress::~Progress() { done(); }
 
 void Progress::note(const std::string& text) {
@@ -44,11 +49,7 @@ void Progress::update(double fraction) {
   if (finished_) return;
   const auto now = std::chrono::steady_clock::now();
   const int decile = static_cast<int>(fraction * 10);
-  if (tty_) {
-    if (now - last_print_ < std::chrono::milliseconds(100)) return;
-  } else if (decile <= last_decile_) {
-    return;
-  }
+  if (!progress_due(tty_, decile, last_decile_, std::chrono::duration<double>(now - last_print_).count())) return;
   last_print_ = now;
   last_decile_ = decile;
   print(fraction, false);

@@ -9,7 +9,7 @@
 namespace lambert::app {
 
 // Prints "  form factors  42%  1 min 10 s, about 1 min 37 s left" on stderr: rewritten in place on a terminal, one
-// line per 10% otherwise; the final line gives the phase's whole time.
+// line per 10% (and at least one a minute) otherwise; the final line gives the phase's whole time.
 class Progress {
  public:
   Progress(std::string phase, bool enabled);
@@ -28,6 +28,12 @@ class Progress {
   std::chrono::steady_clock::time_point start_, last_print_{};
   std::mutex mutex_;
 };
+
+// Whether an update prints: on a terminal at most every 0.1 s (the line is rewritten); otherwise (a log file) at
+// each new tenth of the work, or when kProgressHeartbeat seconds have passed since the last line, so that a phase of
+// an hour still says every minute that it is running and how far it is.
+constexpr double kProgressHeartbeat = 60;
+bool progress_due(bool tty, int decile, int last_decile, double since_last_line);
 
 // "4.2 s", "12 s", "3 min 05 s", "1 h 12 min" (rounded down; negative or NaN as 0).
 std::string format_duration(double seconds);

@@ -7,6 +7,8 @@
 #include "progress.hpp"
 
 using lambert::app::format_duration;
+using lambert::app::progress_due;
+using lambert::app::kProgressHeartbeat;
 using lambert::app::progress_timing;
 
 // Exact strings: users read them, scripts may too.
@@ -34,4 +36,15 @@ TEST(Progress, TimeLeftIsTheRateSoFarExtrapolated) {
   EXPECT_EQ(progress_timing(0.5, 2.9), "2.9 s");  // too early to say
   EXPECT_EQ(progress_timing(0.005, 100), "1 min 40 s");  // too little done to say
   EXPECT_EQ(progress_timing(1.0, 95), "1 min 35 s");   // finished: the phase's time
+}
+
+// On a terminal a line at most every 0.1 s; in a log one per tenth of the work, and one a minute while a tenth takes
+// longer (exact udales_shape.obj printed nothing for minutes after "0%").
+TEST(Progress, LogGetsALineEachTenthAndAtLeastOneAMinute) {
+  EXPECT_TRUE(progress_due(true, 0, 0, 0.1));
+  EXPECT_FALSE(progress_due(true, 5, 0, 0.05));
+  EXPECT_TRUE(progress_due(false, 1, 0, 0.01));   // a new tenth
+  EXPECT_FALSE(progress_due(false, 0, 0, 59.9));  // same tenth, within the minute
+  EXPECT_TRUE(progress_due(false, 0, 0, kProgressHeartbeat));
+  EXPECT_EQ(kProgressHeartbeat, 60);
 }
