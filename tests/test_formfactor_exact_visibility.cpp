@@ -888,6 +888,79 @@ TEST(ExactVisibilityNumerics, ConvexSolidHidesTheHullOfItsProjectedCornersLikeTh
   }
 }
 
+// A non-convex merged region (a wall with a door cut out of it, a staircase of terraced roofs) is cut into convex
+// pieces once per scene, which the union integrates edge by edge; reference: the same region with its pieces
+// removed, which goes to Clipper's union. Points below a plate holding both shapes, a square target above, some
+// close under the plate (projections magnified up to 50x and clipped to the target's cone).
+// Tolerance 5e-9 of F(x -> square): both snap corners to 2^-29 of the square's size, and Clipper also rounds the
+// points where projections cross (the pieces' union computes them exactly): measured up to 2.3e-9 here.
+TEST(ExactVisibilityNumerics, NonConvexRegionHidesLikeItsConvexPieces) {
+  const Poly t = {Vec3(-1, -1, 1), Vec3(-1, 1, 1), Vec3(1, 1, 1), Vec3(1, -1, 1)};  // facing -z
+  const Vec3 nt(0, 0, -1), n(0, 0, 1);
+  // Quads of a plate at z = 0.5 on a 0.2 m grid: a U (a door in a wall) and, apart from it, a staircase.
+  mesh::shapes::Polygons quads;
+  auto cell = [&](int i, int j) {
+    const double x0 = -0.9 + 0.2 * i, y0 = -0.9 + 0.2 * j;
+    quads.push_back({Vec3(x0, y0, 0.5), Vec3(x0 + 0.2, y0, 0.5), Vec3(x0 + 0.2, y0 + 0.2, 0.5), Vec3(x0, y0 + 0.2, 0.5)});
+  };
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (!(i == 1 && j >= 1)) cell(i, j);  // U: the middle column's upper two cells left out
+  for (int i = 5; i < 9; ++i)
+    for (int j = 0; j <= 8 - i; ++j) cell(i, j);  // staircase
+  const auto g = mesh::PatchGeometry::from_polygons(quads);
+  std::vector<int> all(size_t(g.size()));
+  for (int p = 0; p < g.size(); ++p) all[size_t(p)] = p;
+  const auto merged = ff::detail::merge_coplanar_occluders(g, all, std::sqrt(3.0));
+  ASSERT_EQ(merged.polys.size(), 2u) << "the U and the staircase";
+  std::vector<ff::detail::Occluder> pieces, whole;
+  for (size_t m = 0; m < merged.polys.size(); ++m) {
+    ASSERT_FALSE(merged.convex[m]) << "region " << m;
+    ASSERT_GE(merged.parts[m].size(), 2u) << "region " << m;
+    double area = 0;  // the pieces tile the region
+    for (const auto& q : merged.parts[m]) area += 0.5 * mesh::newell_normal(q).norm();
+    EXPECT_NEAR(area, 0.5 * mesh::newell_normal(merged.polys[m]).norm(), 1e-12) << "region " << m;
+    ff::detail::Occluder o{merged.polys[m], false};
+    whole.push_back(o);
+    o.parts = merged.parts[m];
+    pieces.push_back(o);
+  }
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> U(-1, 1);
+  auto scratch = ff::detail::make_exact_scratch();
+  for (int trial = 0; trial < 300; ++trial) {
+    const Vec3 x(U(rng), U(rng), 0.25 * (1 + U(rng)) * (trial % 3 == 0 ? 0.01 : 1));
+    const double h = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, pieces, *scratch);
+    const double ref = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, whole, *scratch);
+    const double full = ff::point_to_polygon(x, n, t);
+    EXPECT_NEAR(h, ref, 5e-9 * full) << "trial " << trial << " x " << x.transpose();
+  }
+}
+
+// A convex occluder whose snapped projection turns right (a corner 0.001 units inside the line of its neighbours,
+// which snap the other way) is united as the hull of its snapped corners, within a unit of it, never left out.
+// Reference: the same occluders marked non-convex (Clipper). Units: 2^-29 of the target's half-size (the union's
+// snapping), with x below the target's centre at half the height, so that the projection doubles exactly.
+TEST(ExactVisibilityNumerics, ProjectionThatSnapsNonConvexIsUnitedAsItsHull) {
+  const Poly t = {Vec3(-1, -1, 1), Vec3(-1, 1, 1), Vec3(1, 1, 1), Vec3(1, -1, 1)};  // facing -z; u = +y, v = +x
+  const Vec3 nt(0, 0, -1), n(0, 0, 1), x(0, 0, 0);
+  const double unit = (1 + 1e-6) / 536870912.0;  // the union's snapping unit in the target's plane (m)
+  // In (u, v) units: a (0, 0.45) -> (0, 0); c (2N, N + 0.45) -> (2N, N); b 0.001 inside the line ac, at
+  // (N, N / 2 + 0.449) -> (N, (N + 1) / 2 + ...) above the snapped line's N / 2 (N odd): a right turn at b.
+  const double N = 33554433;  // 2^25 + 1
+  auto at = [&](double U, double V) { return Vec3(0.5 * V * unit, 0.5 * U * unit, 0.5); };  // z = 0.5: doubled
+  const Poly quad = {at(0, 0.45), at(N, N / 2 + 0.449), at(2 * N, N + 0.45), at(N, 1e8)};
+  const Poly other = {Vec3(-0.3, -0.3, 0.5), Vec3(-0.1, -0.3, 0.5), Vec3(-0.1, -0.1, 0.5), Vec3(-0.3, -0.1, 0.5)};
+  const std::vector<ff::detail::Occluder> convex = {{quad, true}, {other, true}}, general = {{quad, false}, {other, false}};
+  auto scratch = ff::detail::make_exact_scratch();
+  const double h = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, convex, *scratch);
+  const double ref = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, general, *scratch);
+  const std::vector<ff::detail::Occluder> alone = {{quad, false}};
+  const double q = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, alone, *scratch);
+  EXPECT_GT(q, 1e-3 * ff::point_to_polygon(x, n, t)) << "the quad hides something";
+  EXPECT_NEAR(h, ref, 1e-9 * ff::point_to_polygon(x, n, t));
+}
+
 // The union of convex occluders' projections is integrated from their edges directly (the parts of each edge inside
 // no other projection; an edge along another's edge kept once where both lie on one side, dropped where they lie on
 // either side). Reference: the same occluders marked non-convex, which Clipper's union integrates. Cases: a grid of

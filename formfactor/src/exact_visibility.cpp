@@ -4,7 +4,9 @@
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/Partition_traits_2.h>
 #include <CGAL/convex_hull_3.h>
+#include <CGAL/partition_2.h>
 
 #include <polyclipping/clipper.hpp>
 
@@ -60,16 +62,23 @@ void clip_keep(const std::vector<Vec3>& in, const Vec3& m, double c, std::vector
     return;
   }
   if (all_out) return;
+  // Where an edge crosses the plane, computed from its lexicographically smaller end: the same point to the bit
+  // whichever way a polygon runs along the edge (the convex pieces of one region share their diagonals; clipped
+  // separately they must still meet exactly, or the union keeps a sliver between them).
+  auto crossing = [](const Vec3& a, double da, const Vec3& b, double db) {
+    const bool swap = std::lexicographical_compare(b.data(), b.data() + 3, a.data(), a.data() + 3);
+    return swap ? Vec3(b + (a - b) * (db / (db - da))) : Vec3(a + (b - a) * (da / (da - db)));
+  };
   double dp = m.dot(in[k - 1]) - c;
   for (size_t i = 0; i < k; ++i) {
     const Vec3& prev = in[(i + k - 1) % k];
     const Vec3& cur = in[i];
     const double dc = m.dot(cur) - c;
     if (dc >= 0) {
-      if (dp < 0) out.push_back(prev + (cur - prev) * (dp / (dp - dc)));
+      if (dp < 0) out.push_back(crossing(prev, dp, cur, dc));
       out.push_back(cur);
     } else if (dp > 0) {
-      out.push_back(prev + (cur - prev) * (dp / (dp - dc)));
+      out.push_back(crossing(prev, dp, cur, dc));
     }
     dp = dc;
   }
@@ -152,6 +161,32 @@ bool strictly_convex(const ClipperLib::Path& in, ClipperLib::Path& out) {
   return left && changes == 2;
 }
 
+// The convex hull of the integer points `in` (Andrew's monotone chain, counter-clockwise, collinear corners dropped)
+// into `out`; false if they are collinear. Coordinates within Clipper's loRange (2^30): cross products below 2^63.
+bool integer_hull(const ClipperLib::Path& in, ClipperLib::Path& out) {
+  ClipperLib::Path pts(in);
+  std::sort(pts.begin(), pts.end(), [](const ClipperLib::IntPoint& a, const ClipperLib::IntPoint& b) {
+    return a.X < b.X || (a.X == b.X && a.Y < b.Y);
+  });
+  const size_t m = pts.size();
+  out.assign(2 * m + 1, {0, 0});
+  size_t h = 0;
+  auto turn = [](const ClipperLib::IntPoint& o, const ClipperLib::IntPoint& a, const ClipperLib::IntPoint& b) {
+    return (a.X - o.X) * (b.Y - o.Y) - (a.Y - o.Y) * (b.X - o.X);
+  };
+  for (size_t k = 0; k < m; ++k) {
+    while (h >= 2 && turn(out[h - 2], out[h - 1], pts[k]) <= 0) --h;
+    out[h++] = pts[k];
+  }
+  for (size_t k = m - 1, lower = h + 1; m > 0 && k-- > 0;) {
+    while (h >= lower && turn(out[h - 2], out[h - 1], pts[k]) <= 0) --h;
+    out[h++] = pts[k];
+  }
+  if (h < 4) return false;  // the last corner repeats the first
+  out.resize(h - 1);
+  return true;
+}
+
 constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
 // The inside test and the edges' union compare every projection with every other: above this many, Clipper's sweep
 // (n log n) does the union alone.
@@ -212,6 +247,10 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
         }
         if (empty || Int128(lo_n) * hi_d >= Int128(hi_n) * lo_d) continue;  // nothing, or a single point
         if (along > 0 && i < j) continue;  // the same side: the lower index keeps its copy
+        if (lo_n <= 0 && hi_n >= hi_d) {  // all of e is inside B (or along it, covered on both sides): nothing left
+          removed.assign(1, {0.0, 1.0});
+          break;
+        }
         removed.push_back({double(lo_n) / double(lo_d), double(hi_n) / double(hi_d)});
       }
       // The pieces of [0, 1] outside every removed interval.
@@ -365,12 +404,9 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   // Occluders clipped to the cone.
   size_t count = 0;
   bool grouped = false;  // two clipped faces of one solid
-  for (const Occluder& o : occluders) {
-    if (cull && o.cull && o.inner.dot(x) >= o.inner_offset) continue;
-    if (!one_solid && o.solid >= 0 && o.cull && o.inner.dot(x) >= o.inner_offset &&
-        std::find(S.outside.begin(), S.outside.end(), o.solid) != S.outside.end())
-      continue;
-    S.a.assign(o.poly.begin(), o.poly.end());
+  // One polygon clipped to the cone, appended to S.surv[0, count) if anything is left.
+  auto clip_in = [&](std::span<const Vec3> poly, bool convex, int solid) {
+    S.a.assign(poly.begin(), poly.end());
     for (const auto& pl : S.planes) {
       // Most planes keep the whole polygon (or none of it): decided before clip_keep copies anything.
       const Vec3 m(pl[0], pl[1], pl[2]);
@@ -389,13 +425,23 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
       std::swap(S.a, S.b);
       if (S.a.empty()) break;
     }
-    if (S.a.size() < 3) continue;
+    if (S.a.size() < 3) return;
     if (S.surv.size() <= count) S.surv.emplace_back(), S.surv_convex.push_back(false), S.surv_solid.push_back(-1);
     std::swap(S.surv[count], S.a);
-    S.surv_convex[count] = o.convex;
-    S.surv_solid[count] = one_solid ? -1 : o.solid;
-    for (size_t k = 0; k < count && !grouped && o.solid >= 0; ++k) grouped = S.surv_solid[k] == o.solid;
+    S.surv_convex[count] = convex;
+    S.surv_solid[count] = one_solid ? -1 : solid;
+    for (size_t k = 0; k < count && !grouped && solid >= 0; ++k) grouped = S.surv_solid[k] == solid;
     ++count;
+  };
+  for (const Occluder& o : occluders) {
+    if (cull && o.cull && o.inner.dot(x) >= o.inner_offset) continue;
+    if (!one_solid && o.solid >= 0 && o.cull && o.inner.dot(x) >= o.inner_offset &&
+        std::find(S.outside.begin(), S.outside.end(), o.solid) != S.outside.end())
+      continue;
+    if (!o.convex && !o.parts.empty())
+      for (const std::vector<Vec3>& part : o.parts) clip_in(part, true, o.solid);
+    else
+      clip_in(o.poly, o.convex, o.solid);
   }
   if (count == 0) return 0;
   // The clipped faces of one convex solid C become one convex polygon: a segment from x to the target that meets C
@@ -482,10 +528,20 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   if (target_convex && count > 1 && count <= kMaxPairwise) {
     bool convex = true;
     if (S.convex.size() < count) S.convex.resize(count);
-    for (size_t k = 0; k < count && convex; ++k) convex = S.surv_convex[k] && strictly_convex(S.subject[k], S.convex[k]);
+    // A convex occluder's projection that snapping left with a right turn (a sliver seen edge-on, a corner almost on
+    // an edge's line) is replaced by the hull of its snapped corners, within one unit of it (as close as snapping
+    // already is), or left out if they are collinear (no area). Its box stays its box.
+    size_t kept = 0;
+    for (size_t k = 0; k < count && convex; ++k) {
+      convex = S.surv_convex[k];
+      if (!convex) break;
+      if (!strictly_convex(S.subject[k], S.convex[kept]) && !integer_hull(S.subject[k], S.convex[kept])) continue;
+      S.boxes[kept++] = S.boxes[k];
+    }
     if (convex) {
+      if (kept == 0) return 0;
       auto lift = [&](double X, double Y) -> Vec3 { return tc + (X * inv) * u + (Y * inv) * v; };
-      return std::abs(convex_union_contour(S.convex, count, S.boxes, x, n, lift, S.removed)) / (2 * kPi);
+      return std::abs(convex_union_contour(S.convex, kept, S.boxes, x, n, lift, S.removed)) / (2 * kPi);
     }
   }
   S.clipper.Clear();
@@ -1940,6 +1996,48 @@ std::vector<Vec3> solid_centres(const mesh::PatchGeometry& g, const std::vector<
 }
 }  // namespace
 
+namespace {
+// A simple integer polygon (a merged region) cut into convex pieces along diagonals between its corners (CGAL's
+// Hertel-Mehlhorn partition: at most four times the fewest pieces), each counter-clockwise; none if the polygon is
+// not simple or the pieces do not tile it exactly (their areas, in 128-bit integers, must add up to its area).
+std::vector<ClipperLib::Path> convex_pieces(const ClipperLib::Path& path) {
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;  // integer coordinates below 2^30: exact
+  using Traits = CGAL::Partition_traits_2<K>;
+  Traits::Polygon_2 poly;
+  for (const auto& ip : path) poly.push_back(Traits::Point_2(double(ip.X), double(ip.Y)));
+  if (poly.size() < 4 || !poly.is_simple()) return {};
+  if (poly.is_clockwise_oriented()) poly.reverse_orientation();
+  std::vector<Traits::Polygon_2> pieces;
+  CGAL::approx_convex_partition_2(poly.vertices_begin(), poly.vertices_end(), std::back_inserter(pieces), Traits());
+  auto twice_area = [](const ClipperLib::Path& q) {
+    Int128 a = 0;
+    for (size_t k = 0; k < q.size(); ++k) {
+      const auto &p0 = q[k], &p1 = q[(k + 1) % q.size()];
+      a += Int128(p0.X) * p1.Y - Int128(p1.X) * p0.Y;
+    }
+    return a;
+  };
+  std::vector<ClipperLib::Path> out;
+  Int128 sum = 0;
+  for (const auto& piece : pieces) {
+    ClipperLib::Path q;
+    for (auto it = piece.vertices_begin(); it != piece.vertices_end(); ++it)
+      q.push_back({ClipperLib::cInt(it->x()), ClipperLib::cInt(it->y())});
+    for (size_t k = 0; k < q.size(); ++k) {  // convex: no right turn (in integers, exact)
+      const auto &a = q[k], &b = q[(k + 1) % q.size()], &c = q[(k + 2) % q.size()];
+      if (Int128(b.X - a.X) * (c.Y - b.Y) - Int128(b.Y - a.Y) * (c.X - b.X) < 0) return {};
+    }
+    const Int128 a = twice_area(q);
+    if (a <= 0) return {};
+    sum += a;
+    out.push_back(std::move(q));
+  }
+  const Int128 whole = twice_area(path);
+  if (sum != (whole < 0 ? -whole : whole)) return {};
+  return out;
+}
+}  // namespace
+
 MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std::vector<int>& occluders,
                                          double scale) {
   MergedOccluders out;
@@ -1992,8 +2090,17 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
       bool convex = true;
       for (size_t k = 0; k < poly.size() && convex; ++k)
         convex = (poly[(k + 1) % poly.size()] - poly[k]).cross(poly[(k + 2) % poly.size()] - poly[(k + 1) % poly.size()]).dot(n) >= 0;
+      std::vector<std::vector<Vec3>> parts;
+      if (!convex) {
+        auto lift = [&](const ClipperLib::IntPoint& ip) { return o + (double(ip.X) * inv) * u + (double(ip.Y) * inv) * v; };
+        for (const ClipperLib::Path& piece : convex_pieces(path)) {
+          parts.emplace_back();
+          for (const auto& ip : piece) parts.back().push_back(lift(ip));
+        }
+      }
       out.polys.push_back(std::move(poly));
       out.convex.push_back(convex);
+      out.parts.push_back(std::move(parts));
       out.solid.push_back(kUnset);
     }
     // Each member belongs to the region containing its centroid (strictly inside a convex patch's own corners).
@@ -2014,6 +2121,15 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
     }
     for (size_t r = size_t(first); r < out.solid.size(); ++r)
       if (out.solid[r] == kUnset) out.solid[r] = -1;
+  }
+  // Non-convex occluders left as they are (a wall piece cut around a door by the imprint): their own triangles.
+  out.patch_parts.resize(size_t(g.size()));
+  for (int p : occluders) {
+    if (out.of_patch[size_t(p)] >= 0 || convex_polygon(g.polygon(p), g.normal[p])) continue;
+    for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
+      const auto& T = g.triangles[size_t(t)];
+      out.patch_parts[size_t(p)].push_back({g.points[T[0]], g.points[T[1]], g.points[T[2]]});
+    }
   }
   return out;
 }
@@ -2061,6 +2177,7 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
       continue;
     }
     Occluder o{g.polygon(p), convex[size_t(p)] != 0};
+    if (!o.convex && !merged.patch_parts.empty()) o.parts = merged.patch_parts[size_t(p)];
     if (!merged.solid_of_patch.empty() && solid_for_pair(merged.solid_of_patch[size_t(p)]) >= 0) {
       o.solid = merged.solid_of_patch[size_t(p)];
       set_inner(o, P.nrm[p], merged.solid_centre[size_t(o.solid)], 1e-9 * scale);
@@ -2071,6 +2188,7 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
   merged_ids.erase(std::unique(merged_ids.begin(), merged_ids.end()), merged_ids.end());
   for (int m : merged_ids) {
     Occluder o{merged.polys[size_t(m)], merged.convex[size_t(m)] != 0, solid_for_pair(merged.solid[size_t(m)])};
+    o.parts = merged.parts[size_t(m)];
     if (o.solid >= 0)
       set_inner(o, mesh::newell_normal(o.poly).normalized(), merged.solid_centre[size_t(o.solid)], 1e-9 * scale);
     occ.push_back(o);

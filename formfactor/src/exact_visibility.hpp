@@ -40,6 +40,9 @@ struct Occluder {
   bool has_unit = false;
   Vec3 unit = Vec3::Zero();
   double unit_offset = 0;
+  // A non-convex poly's convex pieces (edge to edge, their corners poly's own; empty if none were made): its
+  // projection is united from theirs, without a general Boolean operation.
+  std::span<const std::vector<Vec3>> parts = {};
 };
 
 // F(x -> hidden part of target): x a point with unit normal n; target a planar simple polygon with unit
@@ -100,6 +103,8 @@ std::vector<CriticalSegment> pair_critical_lines(std::span<const Vec3> s, const 
 struct MergedOccluders {
   std::vector<std::vector<Vec3>> polys;
   std::vector<std::uint8_t> convex;
+  std::vector<std::vector<std::vector<Vec3>>> parts;  // per merged polygon: its convex pieces if it is not convex
+  std::vector<std::vector<std::vector<Vec3>>> patch_parts;  // per patch not merged and not convex: its triangles
   std::vector<int> solid;     // per merged polygon: the convex solid of all the members of its plane, or -1
   std::vector<int> of_patch;  // per patch of the geometry: its merged polygon, or -1 (the patch is used as it is)
   std::vector<int> solid_of_patch;  // per patch: convex_solids
