@@ -161,28 +161,37 @@ bool strictly_convex(const ClipperLib::Path& in, ClipperLib::Path& out) {
   return left && changes == 2;
 }
 
-// The convex hull of the integer points `in` (Andrew's monotone chain, counter-clockwise, collinear corners dropped)
-// into `out`; false if they are collinear. Coordinates within Clipper's loRange (2^30): cross products below 2^63.
+// Andrew's monotone chain over pts, sorted (x, then y): the convex hull counter-clockwise, collinear corners dropped,
+// into hull[0, h) with hull[h - 1] == hull[0]; returns h (below 4: fewer than 3 corners, no area). turn(o, a, b) is
+// the cross product (a - o) x (b - o).
+template <class P, class Turn>
+size_t monotone_chain(const std::vector<P>& pts, std::vector<P>& hull, const Turn& turn) {
+  const size_t m = pts.size();
+  hull.resize(2 * m + 1);
+  size_t h = 0;
+  for (size_t k = 0; k < m; ++k) {
+    while (h >= 2 && turn(hull[h - 2], hull[h - 1], pts[k]) <= 0) --h;
+    hull[h++] = pts[k];
+  }
+  for (size_t k = m - 1, lower = h + 1; m > 0 && k-- > 0;) {
+    while (h >= lower && turn(hull[h - 2], hull[h - 1], pts[k]) <= 0) --h;
+    hull[h++] = pts[k];
+  }
+  return h;
+}
+
+// The convex hull of the integer points `in` (counter-clockwise, collinear corners dropped) into `out`; false if they
+// are collinear. Coordinates within Clipper's loRange (2^30): cross products below 2^63.
 bool integer_hull(const ClipperLib::Path& in, ClipperLib::Path& out) {
   ClipperLib::Path pts(in);
   std::sort(pts.begin(), pts.end(), [](const ClipperLib::IntPoint& a, const ClipperLib::IntPoint& b) {
     return a.X < b.X || (a.X == b.X && a.Y < b.Y);
   });
-  const size_t m = pts.size();
-  out.assign(2 * m + 1, {0, 0});
-  size_t h = 0;
-  auto turn = [](const ClipperLib::IntPoint& o, const ClipperLib::IntPoint& a, const ClipperLib::IntPoint& b) {
+  const size_t h = monotone_chain(pts, out, [](const ClipperLib::IntPoint& o, const ClipperLib::IntPoint& a,
+                                                const ClipperLib::IntPoint& b) {
     return (a.X - o.X) * (b.Y - o.Y) - (a.Y - o.Y) * (b.X - o.X);
-  };
-  for (size_t k = 0; k < m; ++k) {
-    while (h >= 2 && turn(out[h - 2], out[h - 1], pts[k]) <= 0) --h;
-    out[h++] = pts[k];
-  }
-  for (size_t k = m - 1, lower = h + 1; m > 0 && k-- > 0;) {
-    while (h >= lower && turn(out[h - 2], out[h - 1], pts[k]) <= 0) --h;
-    out[h++] = pts[k];
-  }
-  if (h < 4) return false;  // the last corner repeats the first
+  });
+  if (h < 4) return false;
   out.resize(h - 1);
   return true;
 }
@@ -290,22 +299,11 @@ bool projected_hull(const Vec3& x, const Vec3& nt, double t0, double hx, const V
         const Vec3 y = x + (q - x) * (hx / std::max(hx - hq, 1e-12 * hx));
         S.uv.push_back({u.dot(y - tc), v.dot(y - tc)});
       }
-  // Andrew's monotone chain.
   std::sort(S.uv.begin(), S.uv.end());
-  const size_t m = S.uv.size();
-  S.hull2.resize(2 * m + 1);
-  size_t h = 0;
-  auto turn = [](const std::array<double, 2>& o, const std::array<double, 2>& a, const std::array<double, 2>& b) {
+  const size_t h = monotone_chain(S.uv, S.hull2, [](const std::array<double, 2>& o, const std::array<double, 2>& a,
+                                                    const std::array<double, 2>& b) {
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-  };
-  for (size_t k = 0; k < m; ++k) {
-    while (h >= 2 && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
-    S.hull2[h++] = S.uv[k];
-  }
-  for (size_t k = m - 1, lower = h + 1; m > 0 && k-- > 0;) {
-    while (h >= lower && turn(S.hull2[h - 2], S.hull2[h - 1], S.uv[k]) <= 0) --h;
-    S.hull2[h++] = S.uv[k];
-  }
+  });
   if (h < 4) return false;  // the last corner repeats the first
   out.clear();
   for (size_t k = 0; k + 1 < h; ++k) out.push_back(tc + S.hull2[k][0] * u + S.hull2[k][1] * v);
