@@ -244,6 +244,10 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
           const ClipperLib::IntPoint &w0 = B[f], &w1 = B[(f + 1) % B.size()];
           const long long fx = w1.X - w0.X, fy = w1.Y - w0.Y;
           const long long a = fx * (p.Y - w0.Y) - fy * (p.X - w0.X), c = fx * dy - fy * dx;
+          if (a < 0 && c < -a) {  // both ends outside this edge of B (a + c < 0, without overflow)
+            empty = true;
+            break;
+          }
           if (c > 0) {  // t >= -a / c
             if (Int128(-a) * lo_d > Int128(lo_n) * c) lo_n = -a, lo_d = c;
           } else if (c < 0) {  // t <= a / -c
