@@ -179,7 +179,6 @@ struct OpenCells {
   void build(const ClipperLib::Paths& paths) {
     row.fill(0);
     const double S = kGridScale, w = 2 * S / kCells;
-    std::vector<double> xs;
     for (const auto& path : paths)
       for (size_t k = 0; k < path.size(); ++k) {
         const auto &a = path[k], &b = path[(k + 1) % path.size()];
@@ -197,15 +196,26 @@ struct OpenCells {
           mark(c - 1, c + 1, r0 - 1, r1 + 1);
         }
       }
-    for (int r = 0; r < kCells; ++r) {  // centres enclosed (even-odd along the row through them)
-      const double y = -S + (r + 0.5) * w;
-      xs.clear();
-      for (const auto& path : paths)
-        for (size_t k = 0; k < path.size(); ++k) {
-          const auto &a = path[k], &b = path[(k + 1) % path.size()];
+    // Centres enclosed (even-odd along the row through them): each edge adds its crossings to the rows whose centre
+    // line it crosses (found from its y range, one row of margin each way, then the exact test), instead of every
+    // row testing every edge (64 x the edges: 12 % of a city's sky).
+    for (auto& row_xs : xs_) row_xs.clear();
+    auto centre = [&](int r) { return -S + (r + 0.5) * w; };
+    for (const auto& path : paths)
+      for (size_t k = 0; k < path.size(); ++k) {
+        const auto &a = path[k], &b = path[(k + 1) % path.size()];
+        if (a.Y == b.Y) continue;
+        const double ylo = double(std::min(a.Y, b.Y)), yhi = double(std::max(a.Y, b.Y));
+        const int r0 = std::max(0, int(std::floor((ylo + S) / w - 0.5)) - 1);
+        const int r1 = std::min(kCells - 1, int(std::floor((yhi + S) / w - 0.5)) + 1);
+        for (int r = r0; r <= r1; ++r) {
+          const double y = centre(r);
           if ((double(a.Y) > y) == (double(b.Y) > y)) continue;
-          xs.push_back(double(a.X) + (double(b.X) - double(a.X)) * (y - double(a.Y)) / (double(b.Y) - double(a.Y)));
+          xs_[size_t(r)].push_back(double(a.X) + (double(b.X) - double(a.X)) * (y - double(a.Y)) / (double(b.Y) - double(a.Y)));
         }
+      }
+    for (int r = 0; r < kCells; ++r) {
+      std::vector<double>& xs = xs_[size_t(r)];
       std::sort(xs.begin(), xs.end());
       for (size_t k = 0; k + 1 < xs.size(); k += 2) {
         const int c0 = int(std::ceil((xs[k] + S) / w - 0.5)), c1 = int(std::floor((xs[k + 1] + S) / w - 0.5));
@@ -213,6 +223,7 @@ struct OpenCells {
       }
     }
   }
+  std::array<std::vector<double>, kCells> xs_;  // per row: where the open region's edges cross its centre line
   // Some marked cell in the rectangle [u0, u1] x [v0, v1] (grid units).
   bool any(ClipperLib::cInt u0, ClipperLib::cInt u1, ClipperLib::cInt v0, ClipperLib::cInt v1) const {
     const int c0 = cell(u0), c1 = cell(u1), r0 = cell(v0), r1 = cell(v1);
