@@ -937,6 +937,45 @@ TEST(ExactVisibilityNumerics, NonConvexRegionHidesLikeItsConvexPieces) {
   }
 }
 
+// A non-convex patch that nothing is merged with (a wall piece cut around a door) enters the union as its triangles,
+// kept once per scene for it alone (convex patches keep none). Reference: the same patch without them, which goes to
+// Clipper's union. Tolerance as above (5e-9 of F(x -> square)).
+TEST(ExactVisibilityNumerics, NonConvexPatchLeftUnmergedEntersAsItsTriangles) {
+  const Poly t = {Vec3(-1, -1, 1), Vec3(-1, 1, 1), Vec3(1, 1, 1), Vec3(1, -1, 1)};  // facing -z
+  const Vec3 nt(0, 0, -1), n(0, 0, 1);
+  mesh::shapes::Polygons polys = {
+      {Vec3(-0.8, -0.8, 0.5), Vec3(0.2, -0.8, 0.5), Vec3(0.2, -0.4, 0.5), Vec3(-0.4, -0.4, 0.5), Vec3(-0.4, 0.6, 0.5),
+       Vec3(-0.8, 0.6, 0.5)},                                                                    // an L
+      {Vec3(0.3, 0.3, 0.7), Vec3(0.7, 0.3, 0.7), Vec3(0.7, 0.7, 0.7), Vec3(0.3, 0.7, 0.7)}};  // a square
+  const auto g = mesh::PatchGeometry::from_polygons(polys);
+  ASSERT_EQ(g.size(), 2);
+  const auto merged = ff::detail::merge_coplanar_occluders(g, {0, 1}, std::sqrt(3.0));
+  ASSERT_LT(merged.of_patch[0], 0) << "the L is alone in its plane: not merged";
+  ASSERT_EQ(merged.patch_parts.count(0), 1u) << "the L keeps its triangles";
+  EXPECT_EQ(merged.patch_parts.count(1), 0u) << "a convex patch keeps none";
+  const auto& parts = merged.patch_parts.at(0);
+  double area = 0;
+  for (const auto& q : parts) area += 0.5 * mesh::newell_normal(q).norm();
+  EXPECT_NEAR(area, g.area[0], 1e-12) << parts.size() << " triangles tile the L";
+  ff::detail::Occluder whole{g.polygon(0), false}, square{g.polygon(1), true};
+  ff::detail::Occluder pieces = whole;
+  pieces.parts = parts;
+  const std::vector<ff::detail::Occluder> with_parts = {pieces, square}, without = {whole, square};
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> U(-1, 1);
+  auto scratch = ff::detail::make_exact_scratch();
+  int hidden = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Vec3 x(U(rng), U(rng), 0.24 * (1 + U(rng)));
+    const double h = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, with_parts, *scratch);
+    const double ref = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, without, *scratch);
+    const double full = ff::point_to_polygon(x, n, t);
+    hidden += ref > 1e-3 * full;
+    EXPECT_NEAR(h, ref, 5e-9 * full) << "trial " << trial << " x " << x.transpose();
+  }
+  EXPECT_GT(hidden, 100) << "most points see the L or the square hide part of the target";
+}
+
 // A convex occluder whose snapped projection turns right (a corner 0.001 units inside the line of its neighbours,
 // which snap the other way) is united as the hull of its snapped corners, within a unit of it, never left out.
 // Reference: the same occluders marked non-convex (Clipper). Units: 2^-29 of the target's half-size (the union's

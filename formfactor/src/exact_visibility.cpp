@@ -2179,12 +2179,12 @@ MergedOccluders merge_coplanar_occluders(const mesh::PatchGeometry& g, const std
       if (out.solid[r] == kUnset) out.solid[r] = -1;
   }
   // Non-convex occluders left as they are (a wall piece cut around a door by the imprint): their own triangles.
-  out.patch_parts.resize(size_t(g.size()));
   for (int p : occluders) {
     if (out.of_patch[size_t(p)] >= 0 || convex_polygon(g.polygon(p), g.normal[p])) continue;
+    auto& parts = out.patch_parts[p];
     for (int t = g.triangle_offsets[p]; t < g.triangle_offsets[p + 1]; ++t) {
       const auto& T = g.triangles[size_t(t)];
-      out.patch_parts[size_t(p)].push_back({g.points[T[0]], g.points[T[1]], g.points[T[2]]});
+      parts.push_back({g.points[T[0]], g.points[T[1]], g.points[T[2]]});
     }
   }
   return out;
@@ -2233,7 +2233,8 @@ void pair_occluders(const mesh::PatchGeometry& g, const PatchData& P, double sca
       continue;
     }
     Occluder o{g.polygon(p), convex[size_t(p)] != 0};
-    if (!o.convex && !merged.patch_parts.empty()) o.parts = merged.patch_parts[size_t(p)];
+    if (!o.convex)
+      if (const auto it = merged.patch_parts.find(p); it != merged.patch_parts.end()) o.parts = it->second;
     if (!merged.solid_of_patch.empty() && solid_for_pair(merged.solid_of_patch[size_t(p)]) >= 0) {
       o.solid = merged.solid_of_patch[size_t(p)];
       set_inner(o, P.nrm[p], merged.solid_centre[size_t(o.solid)], 1e-9 * scale);

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "internal.hpp"
@@ -105,7 +106,8 @@ struct MergedOccluders {
   std::vector<std::vector<Vec3>> polys;
   std::vector<std::uint8_t> convex;
   std::vector<std::vector<std::vector<Vec3>>> parts;  // per merged polygon: its convex pieces if it is not convex
-  std::vector<std::vector<std::vector<Vec3>>> patch_parts;  // per patch not merged and not convex: its triangles
+  // The patches neither merged nor convex (keys; nothing stored for the others): their triangles.
+  std::unordered_map<int, std::vector<std::vector<Vec3>>> patch_parts;
   std::vector<int> solid;     // per merged polygon: the convex solid of all the members of its plane, or -1
   std::vector<int> of_patch;  // per patch of the geometry: its merged polygon, or -1 (the patch is used as it is)
   std::vector<int> solid_of_patch;  // per patch: convex_solids
