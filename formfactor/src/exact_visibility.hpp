@@ -32,7 +32,6 @@ struct Occluder {
   std::span<const Vec3> poly;
   bool convex = false;
   int solid = -1;  // >= 0: a face of that closed convex solid (convex_solids), whose faces' union is its silhouette
-  int id = -1;  // the exact path's own: the occluder's index in its pair's list, which the critical lines refer to
   // With cull: inner . y >= inner_offset for y on the solid's side of the face's plane (a face x sees from behind).
   bool cull = false;
   Vec3 inner = Vec3::Zero();
