@@ -428,8 +428,9 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
       if (S.a.empty()) break;
     }
     if (S.a.size() < 3) return;
-    // A face of a solid clipped down to a sliver on the target's plane (within 1e-8 of x's height) hides nothing,
-    // but its corners would widen the solid's hull below: left out. A solid lying behind the target and sharing the
+    // A face of a solid clipped down to a sliver on the target's plane (every corner within 1e-8 of x's height of it)
+    // hides at most that sliver (a solid's face lying flat just above the target is its bottom, seen from behind and
+    // hidden by the faces above it), but its corners would widen the solid's hull below: left out. A solid lying behind the target and sharing the
     // target's edges (the target one of its faces) reaches in front of the plane only by the merge's snapping of its
     // corners (~1e-9 of its size); its slivers along two edges of the target made a hull over half of it
     // (floorplan.obj, faces 2997 -> 3049: F 87 % low).
