@@ -435,9 +435,9 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
     // corners (~1e-9 of its size); its slivers along two edges of the target made a hull over half of it
     // (floorplan.obj, faces 2997 -> 3049: F 87 % low).
     if (solid >= 0) {
-      double top = 0;
-      for (const Vec3& q : S.a) top = std::max(top, nt.dot(q) - t0);
-      if (top <= 1e-8 * hx) return;
+      double rise = 0;
+      for (const Vec3& q : S.a) rise = std::max(rise, nt.dot(q) - t0);
+      if (rise <= 1e-8 * hx) return;
     }
     if (S.surv.size() <= count) S.surv.emplace_back(), S.surv_convex.push_back(false), S.surv_solid.push_back(-1);
     std::swap(S.surv[count], S.a);
