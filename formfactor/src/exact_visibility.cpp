@@ -430,10 +430,10 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
     if (S.a.size() < 3) return;
     // A face of a solid clipped down to a sliver on the target's plane (every corner within 1e-8 of x's height of it)
     // hides at most that sliver (a solid's face lying flat just above the target is its bottom, seen from behind and
-    // hidden by the faces above it), but its corners would widen the solid's hull below: left out. A solid lying behind the target and sharing the
-    // target's edges (the target one of its faces) reaches in front of the plane only by the merge's snapping of its
-    // corners (~1e-9 of its size); its slivers along two edges of the target made a hull over half of it
-    // (floorplan.obj, faces 2997 -> 3049: F 87 % low).
+    // hidden by the faces above it), but its corners would widen the solid's hull below: left out. A solid lying
+    // behind the target and sharing the target's edges (the target one of its faces) reaches in front of the plane
+    // only by the merge's snapping of its corners (~1e-9 of its size); its slivers along two edges of the target made
+    // a hull over half of it (floorplan.obj, faces 2997 -> 3049: F 87 % low).
     if (solid >= 0) {
       double rise = 0;
       for (const Vec3& q : S.a) rise = std::max(rise, nt.dot(q) - t0);
@@ -1665,9 +1665,9 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       // convex polygon or the faces of one convex solid in front of a convex target (their projections are convex:
       // no three edges line up, no EEE curve): its integrand is smooth, and the degree-5 rule may do (a room with a
       // block: 14 % fewer points). Not with several occluders: in floorplan.obj (faces 3403 -> 2469, lines between
-      // all of them) the degree-5 and degree-3 rules of an element agreed to 1e-11 and were 1.5e-8 off. The budget: its
-      // area's share of the pair's goal, a hundredth of it as a margin (a tenth moved the turned room's entries by
-      // up to 1.2e-9, against 9e-10 with the degree-7 rule). Forced: refined below whatever its rule says if its
+      // all of them) the degree-5 and degree-3 rules of an element agreed to 1e-11 and were 1.5e-8 off. The budget:
+      // its area's share of the pair's goal, a hundredth of it as a margin (a tenth moved the turned room's entries
+      // by up to 1.2e-9, against 9e-10 with the degree-7 rule). Forced: refined below whatever its rule says if its
       // samples all see the target hidden (see `force` below).
       const bool one_convex =
           t_convex && l.occ_count >= 1 && (one_solid() || (l.occ_count == 1 && pool[size_t(l.occ_begin)].convex));
