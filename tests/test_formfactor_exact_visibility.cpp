@@ -1415,6 +1415,32 @@ TEST(ExactVisibilityNumerics, SeveralOccludersTogetherHideThePairWithoutIntegrat
   EXPECT_LE(b, 1e-12) << "the sliver is hidden as the whole ceiling is";
 }
 
+// Plates standing on the target's plane from behind it, their lower edges 7e-10 in front of it, just beyond the 5e-10
+// (1e-10 of the scene) within which the exact path takes a point as on the plane (a merged region's corners move by
+// ~1e-9 of its size: floorplan.obj's window jamb beside face 589 stands 2e-9 in front of it, 4e-10 beyond): cut to
+// the slab in front of the target, they leave slivers 2e-10 tall whose projections have no area. The fused proof took such a projection as no
+// constraint at all, i.e. as hiding the whole target: faces 1148 -> 589 were proven hidden with F 6.75e-6 (the
+// assembly's occluder list happened to lack the jamb). The slivers hide nothing (about 1e-9 of the target's width).
+TEST(ExactVisibilityNumerics, FusedProofIgnoresSliversStandingOnTheTarget) {
+  const Poly e = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)};  // faces +z
+  const Poly t = rect(2, 3, 0, 1, 0, 1, false);                                 // faces -z
+  std::vector<Poly> plates;
+  for (double x : {0.2, 0.4, 0.6, 0.8}) plates.push_back(rect(0, x, -0.5, 1.5, 3 - 7e-10, 3.5, true));
+  std::vector<ff::detail::Occluder> occ;
+  for (const Poly& q : plates) occ.push_back({std::span<const Vec3>(q), true});
+  auto scratch = ff::detail::make_exact_scratch();
+  const Vec3 nz(0, 0, 1);
+  const double b = ff::detail::fused_hidden_bound(e, nz, t, -nz, std::span(occ).subspan(0, 1), 5.0, *scratch);
+  EXPECT_FALSE(b <= 1e-12) << "one sliver proved the target hidden: bound " << b;
+  const double F = ff::polygon_to_polygon(e, t, 1e-12).F;
+  const ff::detail::ExactPairResult r = ff::detail::exact_hidden_pair(e, nz, 1.0, true, t, -nz, true, occ, 1e-8, 5.0, *scratch);
+  EXPECT_NE(r.outcome, ff::detail::ExactPairResult::kHidden) << "four slivers proved the target hidden";
+  // Tolerance: the slivers' shadows, ~1e-9 of the target's width each, and 1e-8 requested.
+  EXPECT_NEAR(r.H, 0.0, 2e-8) << "F unoccluded " << F << ", " << r.points << " points";
+  const ff::PairResult v = ff::visible_polygon_to_polygon(e, t, plates, 1e-8);
+  EXPECT_NEAR(v.F, F, 2e-8);
+}
+
 // The fused proof must never call a pair hidden when a segment between them is free. Random convex elements of a floor,
 // a ceiling target and 2-6 random plates (tilted, at random heights); wherever the proof says hidden, 4,000 random
 // segments between the element and the target are each checked to cross a plate (a segment-polygon test independent

@@ -94,11 +94,12 @@ inline double graded_triangle_source(const Vec3& a, const Vec3& b, const Vec3& c
   return sum;  // the weights integrate to 1 over the triangle: this is the area average
 }
 
-// The area average over the quad `source` (corners in order, unit normal n) of the visible point-to-polygon factor
-// to `target` past `occluders`: the midpoint rule in the quad's bilinear parameters on k cells a side, the first and
-// last of them each cut into 12 halving cells towards the edge, so that a steep strip along an edge (a wall's foot
-// standing on it) is resolved down to 1/2^12 of a cell. Independent of the library's outer rules; its own error at
-// kinks (shadow edges) falls like 1/k^2 only on average: judge it against 2k.
+// The area average over the convex polygon `source` (unit normal n) of the visible point-to-polygon factor to
+// `target` past `occluders`: the midpoint rule on each triangle of its fan, taken as a quad with a collapsed side (a
+// quad source as itself), in the bilinear parameters on k cells a side, the first and last of them each cut into 12
+// halving cells towards the edge, so that a steep strip along an edge (a wall's foot standing on it) is resolved down
+// to 1/2^12 of a cell. Independent of the library's outer rules; its error at kinks (shadow edges) falls like 1/k^2
+// only on average: judge it against 2k.
 inline double graded_midpoint_visible(const Poly& source, const Vec3& n, const Poly& target, const std::vector<Poly>& occluders,
                                       int k) {
   std::vector<std::array<double, 2>> cells;  // [start, width] on [0, 1]
@@ -112,17 +113,21 @@ inline double graded_midpoint_visible(const Poly& source, const Vec3& n, const P
   const double w12 = h / std::ldexp(1.0, 12);
   cells.push_back({0, w12});
   cells.push_back({1 - w12, w12});
-  const Poly& P = source;
+  std::vector<std::array<Vec3, 4>> quads;
+  if (source.size() == 4) quads.push_back({source[0], source[1], source[2], source[3]});
+  else
+    for (size_t t = 1; t + 1 < source.size(); ++t) quads.push_back({source[0], source[t], source[t + 1], source[t + 1]});
   double sum = 0, area = 0;
-  for (const auto& [sa, wa] : cells)
-    for (const auto& [sb, wb] : cells) {
-      const double u = sa + 0.5 * wa, v = sb + 0.5 * wb;
-      const Vec3 x = (1 - u) * (1 - v) * P[0] + u * (1 - v) * P[1] + u * v * P[2] + (1 - u) * v * P[3];
-      const Vec3 du = (1 - v) * (P[1] - P[0]) + v * (P[2] - P[3]), dv = (1 - u) * (P[3] - P[0]) + u * (P[2] - P[1]);
-      const double J = std::abs(du.cross(dv).dot(n)) * wa * wb;
-      sum += J * formfactor::visible_point_to_polygon(x, n, target, occluders);
-      area += J;
-    }
+  for (const auto& P : quads)
+    for (const auto& [sa, wa] : cells)
+      for (const auto& [sb, wb] : cells) {
+        const double u = sa + 0.5 * wa, v = sb + 0.5 * wb;
+        const Vec3 x = (1 - u) * (1 - v) * P[0] + u * (1 - v) * P[1] + u * v * P[2] + (1 - u) * v * P[3];
+        const Vec3 du = (1 - v) * (P[1] - P[0]) + v * (P[2] - P[3]), dv = (1 - u) * (P[3] - P[0]) + u * (P[2] - P[1]);
+        const double J = std::abs(du.cross(dv).dot(n)) * wa * wb;
+        sum += J * formfactor::visible_point_to_polygon(x, n, target, occluders);
+        area += J;
+      }
   return sum / area;
 }
 

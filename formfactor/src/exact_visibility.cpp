@@ -1328,6 +1328,10 @@ double hidden_from_all_of(std::span<const Vec3> corners, std::span<const Vec3> c
       }
       if (signed_area(P) < 0) std::reverse(P.begin(), P.end());
       drop_short_edges(P, 1e-9 * R);
+      if (P.size() < 3) {  // a projection without area (a sliver seen edge-on) hides nothing, not everything
+        X.clear();
+        break;
+      }
       intersect_convex(X, P, tmp);
     }
     drop_short_edges(X, 1e-9 * R);
