@@ -2,14 +2,15 @@
 // occluders, convex solids, tolerance 1e-8 on H) against the same pair with every patch near it as a plain occluder
 // at 1e-10 (visible_polygon_to_polygon: other occluders, other critical lines, other elements). Where the two differ
 // by more than 1.2e-8 (the tolerance and the merge's rounding), the graded midpoint rule of the tests
-// (tests/test_formfactor_util.hpp; convex sources) says which one is off. It found floorplan.obj's faces
+// (tests/test_formfactor_util.hpp) says which one is off. It found floorplan.obj's faces
 // 2997 -> 3049, 1360 -> 1236 and 1014 -> 136 (now cases of the floor plan test).
 //
 //   bench_exact_scan FILE [PAIRS] [SEED] [K]
 //   bench_exact_scan FILE faces A B [K]       one pair: the patches of input faces A and B (one patch each)
+//   bench_exact_scan FILE patches I J [K]     one pair of patches (as the scan prints them)
 //
 // FILE: a model as `lambert formfactors` reads and prepares it. PAIRS random pairs of patches whose centres lie in
-// front of each other (default 2000; only those the exact path integrates or proves hidden are compared), SEED for
+// front of each other (default 2000, each ordered pair once; only those the exact path integrates or proves hidden are compared), SEED for
 // the draw (default 1), K the midpoint rule's cells a side (default 64; doubled up to twice where it disagrees with
 // both). One line per disagreement, then a summary.
 // Parallel over pairs (TBB); the output does not depend on the thread count.
@@ -20,6 +21,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -54,7 +56,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: bench_exact_scan FILE [PAIRS] [SEED] [K]\n");
     return 2;
   }
-  const bool one = argc > 4 && std::string(argv[2]) == "faces";
+  const bool by_patch = argc > 4 && std::string(argv[2]) == "patches";
+  const bool one = by_patch || (argc > 4 && std::string(argv[2]) == "faces");
   const int face_a = one ? std::atoi(argv[3]) : -1, face_b = one ? std::atoi(argv[4]) : -1;
   const int pairs = one ? 1 : argc > 2 ? std::atoi(argv[2]) : 2000;
   const unsigned seed = !one && argc > 3 ? unsigned(std::atoi(argv[3])) : 1u;
@@ -87,20 +90,23 @@ int main(int argc, char** argv) {
   if (one) {
     Row r;
     for (int p = 0; p < g.size(); ++p) {
-      if (scene.face_id[size_t(p)] == face_a) r.i = r.i == -1 ? p : -2;
-      if (scene.face_id[size_t(p)] == face_b) r.j = r.j == -1 ? p : -2;
+      if (by_patch ? p == face_a : scene.face_id[size_t(p)] == face_a) r.i = r.i == -1 ? p : -2;
+      if (by_patch ? p == face_b : scene.face_id[size_t(p)] == face_b) r.j = r.j == -1 ? p : -2;
     }
-    if (r.i < 0 || r.j < 0) {
-      std::fprintf(stderr, "bench_exact_scan: faces %d and %d must each give one patch\n", face_a, face_b);
+    if (r.i < 0 || r.j < 0 || r.i == r.j) {
+      std::fprintf(stderr, "bench_exact_scan: %s %d and %d must be two patches\n", by_patch ? "patches" : "faces",
+                   face_a, face_b);
       return 2;
     }
     rows.push_back(r);
   }
+  std::set<std::pair<int, int>> drawn;  // each ordered pair once
   for (long long tries = 0; int(rows.size()) < pairs && tries < 1000LL * pairs; ++tries) {
     const int i = pick(rng), j = pick(rng);
     if (i == j) continue;
     const Vec3 d = centre[size_t(j)] - centre[size_t(i)];
     if (g.normal[i].dot(d) <= 1e-9 * scale || g.normal[j].dot(-d) <= 1e-9 * scale) continue;
+    if (!drawn.insert({i, j}).second) continue;
     Row r;
     r.i = i, r.j = j;
     rows.push_back(r);
@@ -174,6 +180,18 @@ int main(int argc, char** argv) {
     std::snprintf(verdict, sizeof verdict, "%s (midpoint k = %d: %.9e; merged - midpoint %.2e, unmerged - midpoint %.2e)",
                   me && un ? "both off" : me ? "merged off" : un ? "unmerged off" : "midpoint between them", kk, m,
                   r.merged - m, r.unmerged - m);
+    if (one && std::getenv("LAMBERT_SCAN_VERBOSE")) {
+      for (const Poly* q : {&Pi, &Pj}) {
+        std::printf("%s:", q == &Pi ? "source" : "target");
+        for (const Vec3& v : *q) std::printf(" (%.9g %.9g %.9g)", v.x(), v.y(), v.z());
+        std::printf("\n");
+      }
+      for (size_t q = 0; q < patches.size(); ++q) {
+        std::printf("patch %d:", r.near[q]);
+        for (const Vec3& v : patches[q]) std::printf(" (%.9g %.9g %.9g)", v.x(), v.y(), v.z());
+        std::printf("\n");
+      }
+    }
     std::printf("faces %d -> %d (patches %d, %d): %s F merged %.9e (estimate %.2e, %lld points, %d occluders), "
                 "unmerged %.9e (estimate %.2e, %d patches): %s\n",
                 scene.face_id[size_t(r.i)], scene.face_id[size_t(r.j)], r.i, r.j,

@@ -94,9 +94,9 @@ inline double graded_triangle_source(const Vec3& a, const Vec3& b, const Vec3& c
   return sum;  // the weights integrate to 1 over the triangle: this is the area average
 }
 
-// The area average over the convex polygon `source` (unit normal n) of the visible point-to-polygon factor to
-// `target` past `occluders`: the midpoint rule on each triangle of its fan, taken as a quad with a collapsed side (a
-// quad source as itself), in the bilinear parameters on k cells a side, the first and last of them each cut into 12
+// The area average over the polygon `source` (unit normal n) of the visible point-to-polygon factor to `target` past
+// `occluders`: the midpoint rule on each triangle of its triangulation, taken as a quad with a collapsed side (a
+// convex quad source as itself), in the bilinear parameters on k cells a side, the first and last of them each cut into 12
 // halving cells towards the edge, so that a steep strip along an edge (a wall's foot standing on it) is resolved down
 // to 1/2^12 of a cell. Independent of the library's outer rules; its error at kinks (shadow edges) falls like 1/k^2
 // only on average: judge it against 2k.
@@ -114,9 +114,13 @@ inline double graded_midpoint_visible(const Poly& source, const Vec3& n, const P
   cells.push_back({0, w12});
   cells.push_back({1 - w12, w12});
   std::vector<std::array<Vec3, 4>> quads;
-  if (source.size() == 4) quads.push_back({source[0], source[1], source[2], source[3]});
+  bool convex_quad = source.size() == 4;
+  for (size_t c = 0; c < 4 && convex_quad; ++c)
+    convex_quad = (source[(c + 1) % 4] - source[c]).cross(source[(c + 2) % 4] - source[(c + 1) % 4]).dot(n) > 0;
+  if (convex_quad) quads.push_back({source[0], source[1], source[2], source[3]});
   else
-    for (size_t t = 1; t + 1 < source.size(); ++t) quads.push_back({source[0], source[t], source[t + 1], source[t + 1]});
+    for (const auto& T : mesh::triangulate_polygon(source, n))
+      quads.push_back({source[size_t(T[0])], source[size_t(T[1])], source[size_t(T[2])], source[size_t(T[2])]});
   double sum = 0, area = 0;
   for (const auto& P : quads)
     for (const auto& [sa, wa] : cells)
