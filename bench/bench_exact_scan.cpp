@@ -25,8 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "../formfactor/src/exact_visibility.hpp"
-#include "../formfactor/src/internal.hpp"
+#include "../tests/exact_pair_check.hpp"
 #include "../tests/test_formfactor_util.hpp"
 #include "lambert/formfactor/kernel.hpp"
 #include "lambert/formfactor/visibility.hpp"
@@ -40,13 +39,8 @@ using Poly = std::vector<Vec3>;
 
 namespace {
 
-struct Row {
+struct Row : lambert::fftest::ExactPairCheck {
   int i = -1, j = -1;
-  int outcome = 0;
-  double merged = 0, unmerged = 0, estimate = 0, unmerged_estimate = 0;
-  long long points = 0;
-  int occluders = 0, patches = 0;
-  std::vector<int> near;  // for the midpoint rule
 };
 
 }  // namespace
@@ -72,16 +66,9 @@ int main(int argc, char** argv) {
   Eigen::AlignedBox3d scene_box;
   for (const Vec3& v : g.points) scene_box.extend(v);
   const double scale = scene_box.diagonal().norm();
-  const ff::detail::PatchData P = ff::detail::prepare(g);
-  const auto merged = ff::detail::merge_coplanar_occluders(g, ff::potential_occluders(g), scale);
-  std::vector<std::uint8_t> convex(size_t(g.size()));
-  for (int p = 0; p < g.size(); ++p) convex[size_t(p)] = P.kind[p] <= 2;  // as the assembly
-  std::vector<Eigen::AlignedBox3d> boxes(size_t(g.size()));
+  const lambert::fftest::ExactPairChecker checker(g);
   std::vector<Vec3> centre(size_t(g.size()));
-  for (int p = 0; p < g.size(); ++p) {
-    for (const Vec3& v : g.polygon(p)) boxes[size_t(p)].extend(v);
-    centre[size_t(p)] = boxes[size_t(p)].center();
-  }
+  for (int p = 0; p < g.size(); ++p) centre[size_t(p)] = checker.box(p).center();
 
   // Pairs whose centres lie in front of each other, drawn in a fixed order.
   std::mt19937 rng(seed);
@@ -113,40 +100,11 @@ int main(int argc, char** argv) {
   }
 
   tbb::parallel_for(size_t(0), rows.size(), [&](size_t n) {
-    Row& r = rows[n];
-    const int i = r.i, j = r.j;
-    Eigen::AlignedBox3d pair_box = boxes[size_t(i)];
-    pair_box.extend(boxes[size_t(j)]);
-    std::vector<Poly> patches;
-    for (int q = 0; q < g.size(); ++q) {
-      if (q == i || q == j || !boxes[size_t(q)].intersects(pair_box)) continue;
-      r.near.push_back(q);
-      patches.emplace_back(g.polygon(q).begin(), g.polygon(q).end());
-    }
-    std::vector<int> ids;
-    std::vector<ff::detail::Occluder> occ;
-    ff::detail::pair_occluders(g, P, scale, r.near, i, j, merged, convex, ids, occ);
-    const bool swap = g.area[j] < g.area[i];
-    const int src = swap ? j : i, tgt = swap ? i : j;
     auto scratch = ff::detail::make_exact_scratch();
-    const auto e = ff::detail::exact_hidden_pair(g.polygon(src), P.nrm[src], g.area[src], convex[size_t(src)] != 0,
-                                                 g.polygon(tgt), P.nrm[tgt], convex[size_t(tgt)] != 0, occ, 1e-8, scale,
-                                                 *scratch);
-    r.outcome = e.outcome;
-    if (e.outcome != ff::detail::ExactPairResult::kIntegrated && e.outcome != ff::detail::ExactPairResult::kHidden)
-      return;
-    const Poly Pi(g.polygon(i).begin(), g.polygon(i).end()), Pj(g.polygon(j).begin(), g.polygon(j).end());
-    const double unoccluded = ff::polygon_to_polygon(Pi, Pj, 1e-12).F;
-    const double to_i = swap ? g.area[j] / g.area[i] : 1.0;
-    r.merged = e.outcome == ff::detail::ExactPairResult::kHidden ? 0.0 : unoccluded - e.H * to_i;
-    r.estimate = e.error * to_i;
-    r.points = e.points;
-    r.occluders = int(occ.size());
-    r.patches = int(patches.size());
-    const ff::PairResult u = ff::visible_polygon_to_polygon(Pi, Pj, patches, 1e-10);
-    r.unmerged = u.F;
-    r.unmerged_estimate = u.error_estimate;
+    const lambert::fftest::ExactPairCheck c = checker.check(rows[n].i, rows[n].j, *scratch);
+    static_cast<lambert::fftest::ExactPairCheck&>(rows[n]) = c;
   });
+
 
   int compared = 0, hidden = 0, differ = 0, merged_off = 0, unmerged_off = 0, both_off = 0, undecided = 0;
   double worst = 0;
@@ -196,7 +154,7 @@ int main(int argc, char** argv) {
                 "unmerged %.9e (estimate %.2e, %d patches): %s\n",
                 scene.face_id[size_t(r.i)], scene.face_id[size_t(r.j)], r.i, r.j,
                 r.outcome == ff::detail::ExactPairResult::kHidden ? "hidden," : "", r.merged, r.estimate, r.points,
-                r.occluders, r.unmerged, r.unmerged_estimate, r.patches, verdict);
+                r.occluders, r.unmerged, r.unmerged_estimate, int(r.near.size()), verdict);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("%s: %d patches, %zu pairs drawn, %d compared (%d proven hidden), %lld points; %d differ by > 1.2e-8: "

@@ -15,6 +15,7 @@
 #include "lambert/formfactor/kernel.hpp"
 #include "lambert/mesh/shapes.hpp"
 #include "lambert/verify/verify.hpp"
+#include "exact_pair_check.hpp"
 #include "test_formfactor_util.hpp"
 
 namespace lambert {
@@ -347,14 +348,7 @@ struct PairCase {
 void expect_pairs_match_references(const std::string& file, std::initializer_list<PairCase> cases) {
   const mesh::Scene scene = mesh::prepare_and_build(io::read_soup(std::string(LAMBERT_SOURCE_DIR) + file), {}, {});
   const mesh::PatchGeometry& g = scene.geometry;
-  Eigen::AlignedBox3d scene_box;
-  for (const Vec3& v : g.points) scene_box.extend(v);
-  const double scale = scene_box.diagonal().norm();
-  const ff::detail::PatchData P = ff::detail::prepare(g);
-  const auto merged = ff::detail::merge_coplanar_occluders(g, ff::potential_occluders(g), scale);
-  std::vector<std::uint8_t> convex(size_t(g.size()));
-  // As the assembly: triangle, parallelogram, convex quad.
-  for (int p = 0; p < g.size(); ++p) convex[size_t(p)] = P.kind[p] <= 2;
+  const fftest::ExactPairChecker checker(g);
   auto scratch = ff::detail::make_exact_scratch();
   for (const PairCase& c : cases) {
     const std::string what = file + ", faces " + std::to_string(c.face_i) + " -> " + std::to_string(c.face_j);
@@ -365,37 +359,18 @@ void expect_pairs_match_references(const std::string& file, std::initializer_lis
     }
     ASSERT_GE(pi, 0) << what << ": each face must give one patch (the example changed?)";
     ASSERT_GE(pj, 0) << what << ": each face must give one patch (the example changed?)";
-    const Poly Pi(g.polygon(pi).begin(), g.polygon(pi).end()), Pj(g.polygon(pj).begin(), g.polygon(pj).end());
-    Eigen::AlignedBox3d pair_box;
-    for (const Vec3& v : Pi) pair_box.extend(v);
-    for (const Vec3& v : Pj) pair_box.extend(v);
-    std::vector<int> near;
-    std::vector<std::vector<Vec3>> patches;
-    for (int k = 0; k < g.size(); ++k) {
-      if (k == pi || k == pj) continue;
-      Eigen::AlignedBox3d b;
-      for (const Vec3& v : g.polygon(k)) b.extend(v);
-      if (!b.intersects(pair_box)) continue;
-      near.push_back(k);
-      patches.emplace_back(g.polygon(k).begin(), g.polygon(k).end());
-    }
-    std::vector<int> ids;
-    std::vector<ff::detail::Occluder> occ;
-    ff::detail::pair_occluders(g, P, scale, near, pi, pj, merged, convex, ids, occ);
-    const bool swap = g.area[pj] < g.area[pi];
-    const int src = swap ? pj : pi, tgt = swap ? pi : pj;
-    const auto r = ff::detail::exact_hidden_pair(g.polygon(src), P.nrm[src], g.area[src], convex[size_t(src)] != 0,
-                                                 g.polygon(tgt), P.nrm[tgt], convex[size_t(tgt)] != 0, occ, 1e-8, scale,
-                                                 *scratch);
+    const fftest::ExactPairCheck r = checker.check(pi, pj, *scratch);
     ASSERT_EQ(r.outcome, int(ff::detail::ExactPairResult::kIntegrated)) << what;
-    const double F = ff::polygon_to_polygon(Pi, Pj, 1e-12).F - r.H * (swap ? g.area[pj] / g.area[pi] : 1.0);
-    const ff::PairResult unmerged = ff::visible_polygon_to_polygon(Pi, Pj, patches, 1e-10);
+    const Poly Pi(g.polygon(pi).begin(), g.polygon(pi).end()), Pj(g.polygon(pj).begin(), g.polygon(pj).end());
+    std::vector<Poly> patches;
+    for (int q : r.near) patches.emplace_back(g.polygon(q).begin(), g.polygon(q).end());
     const double midpoint = fftest::graded_midpoint_visible(Pi, g.normal[pi], Pj, patches, c.k);
     // Tolerances: 1e-8 requested on H (and 1e-10 on the unmerged pair; merging moves corners by <= 1e-9 of a wall's
     // size); the midpoint rule's own error (above).
-    EXPECT_NEAR(F, unmerged.F, 1.2e-8) << what << ": " << occ.size() << " occluders, estimate " << r.error << ", "
-                                       << r.points << " points; " << patches.size() << " patches unmerged";
-    EXPECT_NEAR(F, midpoint, c.midpoint_tol) << what << ": midpoint rule on " << c.k << " x " << c.k << " cells";
+    EXPECT_NEAR(r.merged, r.unmerged, 1.2e-8) << what << ": " << r.occluders << " occluders, estimate " << r.estimate
+                                               << ", " << r.points << " points; " << patches.size()
+                                               << " patches unmerged";
+    EXPECT_NEAR(r.merged, midpoint, c.midpoint_tol) << what << ": midpoint rule on " << c.k << " x " << c.k << " cells";
   }
 }
 
