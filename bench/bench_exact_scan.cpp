@@ -8,6 +8,7 @@
 //   bench_exact_scan FILE [PAIRS] [SEED] [K]
 //   bench_exact_scan FILE faces A B [K]       one pair: the patches of input faces A and B (one patch each)
 //   bench_exact_scan FILE patches I J [K]     one pair of patches (as the scan prints them)
+//   (one pair with LAMBERT_SCAN_VERBOSE set: also its polygons and the patches near it)
 //
 // FILE: a model as `lambert formfactors` reads and prepares it. PAIRS random pairs of patches whose centres lie in
 // front of each other (default 2000, each ordered pair once; only those the exact path integrates or proves hidden are compared), SEED for
@@ -47,7 +48,7 @@ struct Row : lambert::fftest::ExactPairCheck {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: bench_exact_scan FILE [PAIRS] [SEED] [K]\n");
+    std::fprintf(stderr, "usage: bench_exact_scan FILE [PAIRS] [SEED] [K] | FILE faces A B [K] | FILE patches I J [K]\n");
     return 2;
   }
   const bool by_patch = argc > 4 && std::string(argv[2]) == "patches";
