@@ -13,7 +13,7 @@
 // FILE: a model as `lambert formfactors` reads and prepares it. PAIRS random pairs of patches whose centres lie in
 // front of each other (default 2000, each ordered pair once; only those the exact path integrates or proves hidden are compared), SEED for
 // the draw (default 1), K the midpoint rule's cells a side (default 64; doubled up to twice where it disagrees with
-// both). One line per disagreement, then a summary.
+// both). One line per disagreement and per pair stopped at the point cap, then a summary.
 // Parallel over pairs (TBB); the output does not depend on the thread count.
 #include <tbb/parallel_for.h>
 
@@ -107,6 +107,8 @@ int main(int argc, char** argv) {
   });
 
 
+  int over = 0;
+  double over_worst = 0;
   int compared = 0, hidden = 0, differ = 0, merged_off = 0, unmerged_off = 0, both_off = 0, undecided = 0;
   double worst = 0;
   long long points = 0;
@@ -116,6 +118,11 @@ int main(int argc, char** argv) {
     ++compared;
     hidden += r.outcome == ff::detail::ExactPairResult::kHidden;
     points += r.points;
+    if (r.over_tolerance) {
+      ++over, over_worst = std::max(over_worst, r.estimate);
+      std::printf("faces %d -> %d (patches %d, %d): stopped at the point cap, estimate %.2e, %d occluders\n",
+                  scene.face_id[size_t(r.i)], scene.face_id[size_t(r.j)], r.i, r.j, r.estimate, r.occluders);
+    }
     const double diff = std::abs(r.merged - r.unmerged);
     worst = std::max(worst, diff);
     const bool off = diff > 1.2e-8;
@@ -159,8 +166,9 @@ int main(int argc, char** argv) {
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("%s: %d patches, %zu pairs drawn, %d compared (%d proven hidden), %lld points; %d differ by > 1.2e-8: "
-              "merged off %d, unmerged off %d, both %d, undecided %d; max |difference| %.2e; %.1f s\n",
+              "merged off %d, unmerged off %d, both %d, undecided %d; max |difference| %.2e; %d stopped at the point cap "
+              "(largest estimate %.2e); %.1f s\n",
               argv[1], g.size(), rows.size(), compared, hidden, points, differ, merged_off, unmerged_off, both_off,
-              undecided, worst, seconds);
+              undecided, worst, over, over_worst, seconds);
   return 0;
 }

@@ -17,6 +17,7 @@ struct ExactPairCheck {
   double merged = 0;         // F_ij through the merged occluders (0 if proven hidden)
   double estimate = 0;       // its error estimate, on F_ij
   long long points = 0;      // its outer rule's points
+  bool over_tolerance = false;  // it stopped at the point cap above the tolerance
   int occluders = 0;         // merged occluders handed to it
   double unmerged = 0;       // F_ij with every patch near the pair as a plain occluder, at 1e-10
   double unmerged_estimate = 0;
@@ -64,6 +65,7 @@ class ExactPairChecker {
                                         scratch);
     r.outcome = e.outcome;
     r.points = e.points;
+    r.over_tolerance = e.over_tolerance;
     r.occluders = int(occ.size());
     if (e.outcome != d::ExactPairResult::kIntegrated && e.outcome != d::ExactPairResult::kHidden) return r;
     const std::vector<Vec3> Pi(g_.polygon(i).begin(), g_.polygon(i).end()), Pj(g_.polygon(j).begin(), g_.polygon(j).end());
