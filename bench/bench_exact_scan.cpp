@@ -64,10 +64,8 @@ int main(int argc, char** argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const mesh::Scene scene = mesh::prepare_and_build(lambert::io::read_soup(argv[1]), {}, {});
   const mesh::PatchGeometry& g = scene.geometry;
-  Eigen::AlignedBox3d scene_box;
-  for (const Vec3& v : g.points) scene_box.extend(v);
-  const double scale = scene_box.diagonal().norm();
   const lambert::fftest::ExactPairChecker checker(g);
+  const double scale = checker.scale();
   std::vector<Vec3> centre(size_t(g.size()));
   for (int p = 0; p < g.size(); ++p) centre[size_t(p)] = checker.box(p).center();
 

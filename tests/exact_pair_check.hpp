@@ -40,6 +40,7 @@ class ExactPairChecker {
       for (const Vec3& v : g.polygon(p)) boxes_[size_t(p)].extend(v);
   }
   const Eigen::AlignedBox3d& box(int p) const { return boxes_[size_t(p)]; }
+  double scale() const { return scale_; }  // the scene's bounding-box diagonal (m)
 
   // The pair (i, j): merged at tolerance 1e-8 on H, as formfactors --visibility exact does, with the candidates a
   // box test gives (the assembly's shaft may give fewer); the unmerged reference only if the merged pair was
