@@ -161,6 +161,8 @@ int main(int argc, char** argv) {
               hs.nodes, hs.levels, hs.far_links, hs.leaf_links, hs.dense_pairs_equivalent,
               100.0 * double(hs.far_links + hs.leaf_links) / double(std::max(1LL, hs.dense_pairs_equivalent)),
               hs.pairs_culled, hs.links_shaft_clear, hs.links_ray_tested, hs.rays_cast);
+  std::printf("  cluster links blocked %lld; patch pairs: ray-tested %lld, shaft-clear %lld\n", hs.links_blocked,
+              hs.pairs_ray_tested, hs.pairs_shaft_clear);
   std::printf("  admitted row error %.2e (F), %.2e (radiance, relative), row sums [%.6f, %.6f]\n", hs.row_error_max,
               hs.radiance_error_max, hs.row_sum_min, hs.row_sum_max);
   if (dense) {
