@@ -104,7 +104,6 @@ int main(int argc, char** argv) {
     static_cast<lambert::fftest::ExactPairCheck&>(rows[n]) = c;
   });
 
-
   int over = 0;
   double over_worst = 0;
   int compared = 0, hidden = 0, differ = 0, merged_off = 0, unmerged_off = 0, both_off = 0, undecided = 0;

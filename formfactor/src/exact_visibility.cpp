@@ -1837,9 +1837,10 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     };
     // A needle (its shortest edge under a third of the longer edge from the opposite corner, its length; as
     // imprinting leaves beside a leg) is cut first into K strips across its length from that corner (K = length /
-    // shortest edge rounded up, at most kMaxStrips): trapezoids about as long as wide, and the three quads of the small triangle at the apex. As three
-    // quads alone its elements stayed needles, and a shadow at its wide end was missed: examples/storey.stl, a 2.6 m x
-    // 6 mm floor sliver (patch 34) to a shelf strip, H 2.2 % low with an estimate of 1e-10, its row 1 + 2.0e-6.
+    // shortest edge rounded up, at most kMaxStrips): trapezoids about as long as wide, and the three quads of the
+    // small triangle at the apex. As three quads alone its elements stayed needles, and a shadow at its wide end was
+    // missed: examples/storey.stl, a 2.6 m x 6 mm floor sliver (patch 34) to a shelf strip, H 2.2 % low with an
+    // estimate of 1e-10, its row 1 + 2.0e-6.
     constexpr int kMaxStrips = 64;
     for (const auto& T : tris) {
       int apex = 0;
