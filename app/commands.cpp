@@ -336,6 +336,20 @@ std::vector<Finding> assess(const Run& r) {
                       st.area_facing_down, st.area_facing_up),
           false);
   }
+  // A row above 1 beyond its admitted error (formfactor::Stats::rows_above_one): the bounds do not hold. Fatal
+  // where visibility is exact (the bound is a bound); a warning where rays estimate it (sigmas are estimates).
+  if (r.ff && !r.adaptive && r.ff->rows_above_one > 0) {
+    const formfactor::Stats& st = *r.ff;
+    const bool rays = st.pairs_ray_tested > 0;
+    add("rows_above_one", double(st.rows_above_one),
+        fmt::format("{} rows sum above 1 by more than their admitted error (no patch sees more than its hemisphere): "
+                    "patch {} sums to 1 + {:.3g}, {:.3g}x its bound {:.2e}{}",
+                    st.rows_above_one, st.rows_above_one_worst, st.rows_above_one_worst_sum - 1,
+                    st.rows_above_one_ratio, st.rows_above_one_worst_allowed,
+                    rays ? " (integration bound + 3 + sqrt(2 ln N) sigma of the ray-estimated visibility)"
+                         : ": form factors or exact visibility are wrong"),
+        !rays);
+  }
   if (recip_ratio > 1)
     add("reciprocity_check", recip_ratio,
         fmt::format("reciprocity check: {} pairs integrated independently in the reverse direction differ by {:.3g}x "
@@ -503,6 +517,10 @@ std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* 
                        s.pairs_exact_over_tolerance ? fmt::format(", {} above tolerance", s.pairs_exact_over_tolerance) : "",
                        sec("visibility_exact"), s.pairs_ray_tested, sec("visibility_rays"));
   }
+  if (s.rows_above_one_worst >= 0)
+    out += fmt::format("  rows above 1 largest excess 1 + {:.2e} (patch {}), {:.2g}x its admitted error{}\n",
+                       s.rows_above_one_worst_sum - 1, s.rows_above_one_worst, s.rows_above_one_ratio,
+                       s.rows_above_one ? fmt::format("; {} rows beyond it", s.rows_above_one) : "");
   if (s.reciprocity_check_pairs > 0)
     out += fmt::format("  reciprocity  {} pairs integrated independently in reverse: largest difference {:.2e} relative, "
                        "{:.2g}x its error bound ({})\n",

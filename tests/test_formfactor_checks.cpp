@@ -168,6 +168,43 @@ TEST(FormFactorChecks, RowErrorBoundCoversRowSumError) {
   EXPECT_LT(st.row_visibility_sigma_max, 0.05);
 }
 
+// No row sums above 1 by more than its admitted error on correct matrices: the closed sphere (unoccluded, bound
+// only), the occluded room by rays (bound + k sigma) and by exact visibility (bound only; sigma 0). Tolerance: the
+// admitted error itself (rows_above_one_ratio <= 1 is its definition).
+TEST(FormFactorChecks, NoRowAboveOneBeyondItsBoundOnCorrectMatrices) {
+  Options exact;
+  exact.visibility_method = VisibilityMethod::Exact;
+  const std::vector<std::pair<const mesh::PatchGeometry*, Options>> cases = {
+      {&sphere(), {}}, {&room(), {}}, {&room(), exact}};
+  for (const auto& [g, o] : cases) {
+    Stats st;
+    assemble(*g, o, &st);
+    EXPECT_EQ(st.rows_above_one, 0) << g->size() << " patches, " << st.visibility_method << ": worst row "
+                                    << st.rows_above_one_worst << " sums to 1 + " << st.rows_above_one_worst_sum - 1
+                                    << ", allowed " << st.rows_above_one_worst_allowed;
+    EXPECT_LE(st.rows_above_one_ratio, 1.0);
+  }
+}
+
+// A tier that overestimates is caught by the rows alone: in the closed sphere (every row 1, no rays) each
+// method in turn is made 1e-2 too large (one such entry of ~3e-3 adds 3e-5 to its row, against a row bound of
+// at most 320 x 1e-8), and some row must exceed 1 beyond its bound. Without the fault none does (test above).
+TEST(FormFactorChecks, RowsAboveOneDetectAnOverestimatingTier) {
+  Stats clean;
+  assemble(sphere(), {}, &clean);
+  ASSERT_GE(clean.pairs_by_method.size(), 2u) << methods(clean.pairs_by_method);
+  for (const auto& [method, count] : clean.pairs_by_method) {
+    Options o;
+    o.fault_method = method;
+    o.fault_relative = 1e-2;
+    Stats st;
+    assemble(sphere(), o, &st);
+    EXPECT_GT(st.rows_above_one, 0) << "fault in " << method << " (" << count << " pairs) not seen; largest ratio "
+                                    << st.rows_above_one_ratio;
+    EXPECT_GT(st.rows_above_one_ratio, 1.0) << method;
+  }
+}
+
 // Two nearly coplanar squares sharing an edge (dihedral angle 1e-6 .. 1e-15 rad short of flat): F ~ angle^2 / 20
 // and its computed value may fall a hair below 0 (the udales_shape model had 138 such entries). Such entries are round-off (within the bound), counted as such,
 // never as untrustworthy entries outside [0, 1].
