@@ -253,6 +253,11 @@ formfactor::Stats stats_of(const formfactor::HierarchyStats& h, const formfactor
   st.row_error_bound_max = h.row_error_max;
   st.row_visibility_sigma = h.row_visibility_sigma;
   st.row_visibility_sigma_max = h.row_visibility_sigma_max;
+  st.rows_above_one = h.rows_above_one;
+  st.rows_above_one_ratio = h.rows_above_one_ratio;
+  st.rows_above_one_worst = h.rows_above_one_worst;
+  st.rows_above_one_worst_sum = h.rows_above_one_worst_sum;
+  st.rows_above_one_worst_allowed = h.rows_above_one_worst_allowed;
   st.seconds["form_factors"] = h.seconds_total;
   st.bytes = h.bytes;
   return st;
@@ -337,16 +342,19 @@ std::vector<Finding> assess(const Run& r) {
           false);
   }
   // A row above 1 beyond its admitted error (formfactor::Stats::rows_above_one): the bounds do not hold. Fatal
-  // where visibility is exact (the bound is a bound); a warning where rays estimate it (sigmas are estimates).
+  // where visibility is exact (the bound is a bound); a warning where rays estimate it (sigmas are estimates) and
+  // under the hierarchy (its links' errors are estimates).
   if (r.ff && !r.adaptive && r.ff->rows_above_one > 0) {
     const formfactor::Stats& st = *r.ff;
-    const bool rays = st.pairs_ray_tested > 0;
+    const bool rays = st.pairs_ray_tested > 0 || r.hierarchy;
     add("rows_above_one", double(st.rows_above_one),
         fmt::format("{} rows sum above 1 by more than their admitted error (no patch sees more than its hemisphere): "
                     "patch {} sums to 1 + {:.3g}, {:.3g}x its bound {:.2e}{}",
                     st.rows_above_one, st.rows_above_one_worst, st.rows_above_one_worst_sum - 1,
                     st.rows_above_one_ratio, st.rows_above_one_worst_allowed,
-                    rays ? " (integration bound + 3 + sqrt(2 ln N) sigma of the ray-estimated visibility)"
+                    r.hierarchy ? " (the hierarchy's admitted row error, an estimate, + 3 + sqrt(2 ln N) sigma of its "
+                                  "ray-estimated patch pairs)"
+                    : rays ? " (integration bound + 3 + sqrt(2 ln N) sigma of the ray-estimated visibility)"
                          : ": form factors or exact visibility are wrong"),
         !rays);
   }
@@ -466,6 +474,10 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                       {"portals", {{"openings", h.portals}, {"room_cells", h.room_cells},
                                    {"pairs_refused", h.pairs_portal_culled}, {"seconds", h.seconds_portals}}},
                       {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
+                      {"rows_above_one", {{"rows", h.rows_above_one}, {"max_ratio", h.rows_above_one_ratio},
+                                          {"worst_patch", h.rows_above_one_worst},
+                                          {"worst_row_sum", h.rows_above_one_worst_sum},
+                                          {"worst_allowed", h.rows_above_one_worst_allowed}}},
                       {"radiance_error_max", h.radiance_error_max},
                       {"row_visibility_sigma_max", h.row_visibility_sigma_max}, {"bytes", h.bytes},
                       {"bytes_estimate", h.bytes_estimate}, {"dense_pairs_equivalent", h.dense_pairs_equivalent},
@@ -493,6 +505,12 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
   return j;
 }
 
+// The summary line of the rows above 1 (formfactor::Stats::rows_above_one).
+std::string rows_above_one_line(double worst_sum, int worst, double ratio, long long rows) {
+  return fmt::format("  rows above 1 largest excess 1 + {:.2e} (patch {}), {:.2g}x its admitted error{}\n", worst_sum - 1,
+                     worst, ratio, rows ? fmt::format("; {} rows beyond it", rows) : "");
+}
+
 std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* check) {
   std::string out = fmt::format(
       "  pairs        {} ({} culled by orientation, {} proven unoccluded, {}{}{}{} ray-tested), rays {}\n"
@@ -518,9 +536,8 @@ std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* 
                        sec("visibility_exact"), s.pairs_ray_tested, sec("visibility_rays"));
   }
   if (s.rows_above_one_worst >= 0)
-    out += fmt::format("  rows above 1 largest excess 1 + {:.2e} (patch {}), {:.2g}x its admitted error{}\n",
-                       s.rows_above_one_worst_sum - 1, s.rows_above_one_worst, s.rows_above_one_ratio,
-                       s.rows_above_one ? fmt::format("; {} rows beyond it", s.rows_above_one) : "");
+    out += rows_above_one_line(s.rows_above_one_worst_sum, s.rows_above_one_worst, s.rows_above_one_ratio,
+                               s.rows_above_one);
   if (s.reciprocity_check_pairs > 0)
     out += fmt::format("  reciprocity  {} pairs integrated independently in reverse: largest difference {:.2e} relative, "
                        "{:.2g}x its error bound ({})\n",
@@ -555,6 +572,9 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                      h.pairs_shaft_clear, h.rays_cast,
                      h.tolerance, h.link_tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
                      per_level.empty() ? "-" : per_level);
+    if (h.rows_above_one_worst >= 0)
+      s += rows_above_one_line(h.rows_above_one_worst_sum, h.rows_above_one_worst, h.rows_above_one_ratio,
+                               h.rows_above_one);
     if (h.enclosures > 0)
       s += fmt::format("  enclosures   {} closed surfaces ({} patches): {} cells{}; {} node pairs facing different cells "
                        "refused without rays ({:.2f} s)\n",

@@ -1247,6 +1247,21 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     st.row_sum_min = rs.minCoeff();
     st.row_sum_max = rs.maxCoeff();
     st.row_sum_mean = rs.mean();
+    // Rows above 1 beyond their admitted error (as formfactor::Stats::rows_above_one; dark rows left out, their
+    // rows unresolved).
+    const double k_sigma = 3 + std::sqrt(2 * std::log(std::max(2.0, double(n))));
+    for (int p = 0; p < n; ++p) {
+      if (!st.row_dark.empty() && st.row_dark[size_t(p)]) continue;
+      const double allowed = st.row_error[size_t(p)] + k_sigma * st.row_visibility_sigma[size_t(p)] + 1e-11;
+      const double ratio = (rs[p] - 1) / allowed;
+      if (ratio > 1) ++st.rows_above_one;
+      if (ratio > st.rows_above_one_ratio) {
+        st.rows_above_one_ratio = ratio;
+        st.rows_above_one_worst = p;
+        st.rows_above_one_worst_sum = rs[p];
+        st.rows_above_one_worst_allowed = allowed;
+      }
+    }
   };
   if (o.threads > 0) {
     tbb::task_arena arena(o.threads);
