@@ -433,22 +433,7 @@ TEST(ExactVisibilityNumerics, StoreyFloorSliverMatchesStripsFromItsApex) {
     const Poly T(g.polygon(t).begin(), g.polygon(t).end());
     std::vector<Poly> occ;
     for (int q : r.near) occ.emplace_back(g.polygon(q).begin(), g.polygon(q).end());
-    // The apex is the corner opposite the shortest edge.
-    int apex = 0;
-    double shortest = INFINITY;
-    for (int k = 0; k < 3; ++k) {
-      const double l = (S[size_t((k + 1) % 3)] - S[size_t((k + 2) % 3)]).norm();
-      if (l < shortest) shortest = l, apex = k;
-    }
-    const Vec3 &a = S[size_t(apex)], &b = S[size_t((apex + 1) % 3)], &c = S[size_t((apex + 2) % 3)];
-    constexpr int kStrips = 20;
-    double ref = 0;
-    for (int k = 0; k < kStrips; ++k) {
-      const double u0 = double(k) / kStrips, u1 = double(k + 1) / kStrips;
-      const Poly piece = k == 0 ? Poly{a, a + u1 * (b - a), a + u1 * (c - a)}
-                                : Poly{a + u0 * (b - a), a + u1 * (b - a), a + u1 * (c - a), a + u0 * (c - a)};
-      ref += ff::visible_polygon_to_polygon(piece, T, occ, 1e-11).F * (u1 * u1 - u0 * u0);  // area share
-    }
+    const double ref = fftest::strips_from_apex_visible(S, T, occ, 20);  // 20 strips from the apex, at 1e-11
     EXPECT_NEAR(r.merged, ref, 2e-8) << "storey.stl, sliver patch " << sliver << " -> patch " << t << ": "
                                      << r.occluders << " occluders, estimate " << r.estimate << ", " << r.points
                                      << " points; unmerged " << r.unmerged;

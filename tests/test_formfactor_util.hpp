@@ -1,5 +1,6 @@
 #pragma once
 // Shared helpers for the form-factor tests: polygon builders and independent reference integrals.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
@@ -133,6 +134,39 @@ inline double graded_midpoint_visible(const Poly& source, const Vec3& n, const P
         area += J;
       }
   return sum / area;
+}
+
+// The shortest edge's opposite corner of triangle t (the apex of a needle) and whether t is a needle as
+// exact_hidden_pair takes one: shortest edge under a third of the longest.
+inline int needle_apex(const Poly& t, bool* needle = nullptr) {
+  int apex = 0;
+  double shortest = INFINITY, longest = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double l = (t[size_t((k + 1) % 3)] - t[size_t((k + 2) % 3)]).norm();
+    if (l < shortest) shortest = l, apex = k;
+    longest = std::max(longest, l);
+  }
+  if (needle) *needle = 3 * shortest < longest;
+  return apex;
+}
+
+// Reference F from a needle triangle `source` to `target` past `occluders` (plain polygons): the triangle cut into
+// `strips` strips from the apex opposite its shortest edge (the first a triangle, the others trapezoids), each
+// integrated by visible_polygon_to_polygon at `tol` and weighted by its share of the area. Independent of
+// exact_hidden_pair's own strips (other counts, other elements, unmerged occluders); 20, 50 and 200 strips agreed
+// to 1e-11 on storey.stl's floor sliver, whose whole-triangle value the midpoint rule could not decide.
+inline double strips_from_apex_visible(const Poly& source, const Poly& target, const std::vector<Poly>& occluders,
+                                       int strips = 20, double tol = 1e-11) {
+  const int apex = needle_apex(source);
+  const Vec3 &a = source[size_t(apex)], &b = source[size_t((apex + 1) % 3)], &c = source[size_t((apex + 2) % 3)];
+  double ref = 0;
+  for (int k = 0; k < strips; ++k) {
+    const double u0 = double(k) / strips, u1 = double(k + 1) / strips;
+    const Poly piece = k == 0 ? Poly{a, a + u1 * (b - a), a + u1 * (c - a)}
+                              : Poly{a + u0 * (b - a), a + u1 * (b - a), a + u1 * (c - a), a + u0 * (c - a)};
+    ref += formfactor::visible_polygon_to_polygon(piece, target, occluders, tol).F * (u1 * u1 - u0 * u0);
+  }
+  return ref;
 }
 
 }  // namespace lambert::fftest
