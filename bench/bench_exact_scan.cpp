@@ -9,7 +9,9 @@
 //   bench_exact_scan FILE [PAIRS] [SEED] [K]
 //   bench_exact_scan FILE faces A B [K]       one pair: the patches of input faces A and B (one patch each)
 //   bench_exact_scan FILE patches I J [K]     one pair of patches (as the scan prints them)
-//   (one pair with LAMBERT_SCAN_VERBOSE set: also its polygons and the patches near it)
+//   (one pair with LAMBERT_SCAN_VERBOSE set: also its polygons and the patches near it; with LAMBERT_SCAN_STRIPS set,
+//   every triangle source is judged by the strips reference, not only needles; with LAMBERT_SCAN_GRID=n, a quad source
+//   by its n x n bilinear pieces, each integrated by visible_polygon_to_polygon at 1e-11)
 //
 // FILE: a model as `lambert formfactors` reads and prepares it. PAIRS random pairs of patches whose centres lie in
 // front of each other (default 2000, each ordered pair once; only those the exact path integrates or proves hidden are compared), SEED for
@@ -136,8 +138,23 @@ int main(int argc, char** argv) {
     double m = 0;
     bool me = true, un = true, needle = false;
     if (Pi.size() == 3) lambert::fftest::needle_apex(Pi, &needle);
+    needle = needle || (Pi.size() == 3 && std::getenv("LAMBERT_SCAN_STRIPS"));
     int kk = k;
-    if (needle) {
+    const char* grid_env = std::getenv("LAMBERT_SCAN_GRID");
+    const int grid = grid_env && Pi.size() == 4 ? std::atoi(grid_env) : 0;
+    if (grid > 0) {  // the quad source cut into grid x grid bilinear pieces, each at 1e-11
+      m = 0;
+      auto at = [&](double s, double t) { return ((1 - s) * (1 - t)) * Pi[0] + (s * (1 - t)) * Pi[1] + (s * t) * Pi[2] + ((1 - s) * t) * Pi[3]; };
+      const double area = lambert::mesh::newell_normal(Pi).norm() / 2;
+      for (int a = 0; a < grid; ++a)
+        for (int c = 0; c < grid; ++c) {
+          const double s0 = double(a) / grid, s1 = double(a + 1) / grid, t0 = double(c) / grid, t1 = double(c + 1) / grid;
+          const Poly piece = {at(s0, t0), at(s1, t0), at(s1, t1), at(s0, t1)};
+          const double w = lambert::mesh::newell_normal(piece).norm() / 2 / area;
+          m += ff::visible_polygon_to_polygon(piece, Pj, patches, 1e-11).F * w;
+        }
+      me = std::abs(r.merged - m) > 1.2e-8, un = std::abs(r.unmerged - m) > 1.2e-8;
+    } else if (needle) {
       m = lambert::fftest::strips_from_apex_visible(Pi, Pj, patches, 50);
       me = std::abs(r.merged - m) > 1.2e-8, un = std::abs(r.unmerged - m) > 1.2e-8;
     } else {
@@ -148,7 +165,9 @@ int main(int argc, char** argv) {
       kk /= 2;
     }
     if (off) merged_off += me && !un, unmerged_off += un && !me, both_off += me && un, undecided += !me && !un;
-    const std::string ref = needle ? std::string("strips, 50 from the apex") : "midpoint k = " + std::to_string(kk);
+    const std::string ref = grid > 0 ? "grid " + std::to_string(grid) + " x " + std::to_string(grid)
+                            : needle ? std::string("strips, 50 from the apex")
+                                     : "midpoint k = " + std::to_string(kk);
     char verdict[240];
     std::snprintf(verdict, sizeof verdict, "%s (%s: %.9e; merged - reference %.2e, unmerged - reference %.2e)",
                   me && un ? "both off" : me ? "merged off" : un ? "unmerged off" : "reference between them",
