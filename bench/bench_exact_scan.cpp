@@ -11,7 +11,8 @@
 //   bench_exact_scan FILE patches I J [K]     one pair of patches (as the scan prints them)
 //   (one pair with LAMBERT_SCAN_VERBOSE set: also its polygons and the patches near it; with LAMBERT_SCAN_STRIPS set,
 //   every triangle source is judged by the strips reference, not only needles; with LAMBERT_SCAN_GRID=n, a quad source
-//   by its n x n bilinear pieces, each integrated by visible_polygon_to_polygon at 1e-11)
+//   by its n x n bilinear pieces, each integrated by visible_polygon_to_polygon at 1e-11, any other source by its
+//   triangles, each in 10 n strips from its apex)
 //
 // FILE: a model as `lambert formfactors` reads and prepares it. PAIRS random pairs of patches whose centres lie in
 // front of each other (default 2000, each ordered pair once; only those the exact path integrates or proves hidden are compared), SEED for
@@ -141,8 +142,17 @@ int main(int argc, char** argv) {
     needle = needle || (Pi.size() == 3 && std::getenv("LAMBERT_SCAN_STRIPS"));
     int kk = k;
     const char* grid_env = std::getenv("LAMBERT_SCAN_GRID");
-    const int grid = grid_env && Pi.size() == 4 ? std::atoi(grid_env) : 0;
-    if (grid > 0) {  // the quad source cut into grid x grid bilinear pieces, each at 1e-11
+    const int grid = grid_env ? std::atoi(grid_env) : 0;
+    if (grid > 0 && Pi.size() != 4) {  // any other source: its triangles, each in 10 x grid strips from its apex
+      m = 0;
+      const double area = lambert::mesh::newell_normal(Pi).norm() / 2;
+      for (const auto& t : lambert::mesh::triangulate_polygon(Pi, g.normal[r.i])) {
+        const Poly tri = {Pi[size_t(t[0])], Pi[size_t(t[1])], Pi[size_t(t[2])]};
+        m += lambert::fftest::strips_from_apex_visible(tri, Pj, patches, 10 * grid) *
+             (lambert::mesh::newell_normal(tri).norm() / 2 / area);
+      }
+      me = std::abs(r.merged - m) > 1.2e-8, un = std::abs(r.unmerged - m) > 1.2e-8;
+    } else if (grid > 0) {  // the quad source cut into grid x grid bilinear pieces, each at 1e-11
       m = 0;
       auto at = [&](double s, double t) { return ((1 - s) * (1 - t)) * Pi[0] + (s * (1 - t)) * Pi[1] + (s * t) * Pi[2] + ((1 - s) * t) * Pi[3]; };
       const double area = lambert::mesh::newell_normal(Pi).norm() / 2;
@@ -165,7 +175,8 @@ int main(int argc, char** argv) {
       kk /= 2;
     }
     if (off) merged_off += me && !un, unmerged_off += un && !me, both_off += me && un, undecided += !me && !un;
-    const std::string ref = grid > 0 ? "grid " + std::to_string(grid) + " x " + std::to_string(grid)
+    const std::string ref = grid > 0 && Pi.size() != 4 ? "triangles in " + std::to_string(10 * grid) + " strips"
+                            : grid > 0 ? "grid " + std::to_string(grid) + " x " + std::to_string(grid)
                             : needle ? std::string("strips, 50 from the apex")
                                      : "midpoint k = " + std::to_string(kk);
     char verdict[240];
