@@ -68,7 +68,8 @@ int main(int argc, char** argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const mesh::Scene scene = mesh::prepare_and_build(lambert::io::read_soup(argv[1]), {}, {});
   const mesh::PatchGeometry& g = scene.geometry;
-  const lambert::fftest::ExactPairChecker checker(g);
+  lambert::fftest::ExactPairChecker checker(g);
+  if (const char* t = std::getenv("LAMBERT_SCAN_TOL")) checker.merged_tolerance = std::atof(t);
   const double scale = checker.scale();
   std::vector<Vec3> centre(size_t(g.size()));
   for (int p = 0; p < g.size(); ++p) centre[size_t(p)] = checker.box(p).center();

@@ -42,7 +42,9 @@ class ExactPairChecker {
   const Eigen::AlignedBox3d& box(int p) const { return boxes_[size_t(p)]; }
   double scale() const { return scale_; }  // the scene's bounding-box diagonal (m)
 
-  // The pair (i, j): merged at tolerance 1e-8 on H, as formfactors --visibility exact does, with the candidates a
+  double merged_tolerance = 1e-8;  // on H, the merged path's (formfactors --visibility exact uses 1e-8)
+
+  // The pair (i, j): merged at merged_tolerance on H, as formfactors --visibility exact does, with the candidates a
   // box test gives (the assembly's shaft may give fewer); the unmerged reference only if the merged pair was
   // integrated or proven hidden.
   ExactPairCheck check(int i, int j, formfactor::detail::ExactScratch& scratch) const {
@@ -62,7 +64,7 @@ class ExactPairChecker {
     const bool swap = g_.area[j] < g_.area[i];  // integrated from the smaller patch, as the assembly does
     const int src = swap ? j : i, tgt = swap ? i : j;
     const auto e = d::exact_hidden_pair(g_.polygon(src), P_.nrm[src], g_.area[src], convex_[size_t(src)] != 0,
-                                        g_.polygon(tgt), P_.nrm[tgt], convex_[size_t(tgt)] != 0, occ, 1e-8, scale_,
+                                        g_.polygon(tgt), P_.nrm[tgt], convex_[size_t(tgt)] != 0, occ, merged_tolerance, scale_,
                                         scratch);
     r.outcome = e.outcome;
     r.points = e.points;
