@@ -154,18 +154,7 @@ int main(int argc, char** argv) {
       }
       me = std::abs(r.merged - m) > 1.2e-8, un = std::abs(r.unmerged - m) > 1.2e-8;
     } else if (grid > 0) {  // the quad source cut into grid x grid bilinear pieces, each at 1e-11
-      m = 0;
-      auto at = [&](double u, double v) {
-        return ((1 - u) * (1 - v)) * Pi[0] + (u * (1 - v)) * Pi[1] + (u * v) * Pi[2] + ((1 - u) * v) * Pi[3];
-      };
-      const double area = lambert::mesh::newell_normal(Pi).norm() / 2;
-      for (int a = 0; a < grid; ++a)
-        for (int c = 0; c < grid; ++c) {
-          const double u0 = double(a) / grid, u1 = double(a + 1) / grid, v0 = double(c) / grid, v1 = double(c + 1) / grid;
-          const Poly piece = {at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1)};
-          const double w = lambert::mesh::newell_normal(piece).norm() / 2 / area;
-          m += ff::visible_polygon_to_polygon(piece, Pj, patches, 1e-11).F * w;
-        }
+      m = lambert::fftest::grid_visible_quad(Pi, Pj, patches, grid);
       me = std::abs(r.merged - m) > 1.2e-8, un = std::abs(r.unmerged - m) > 1.2e-8;
     } else if (needle) {
       m = lambert::fftest::strips_from_apex_visible(Pi, Pj, patches, 50);

@@ -169,4 +169,24 @@ inline double strips_from_apex_visible(const Poly& source, const Poly& target, c
   return ref;
 }
 
+// Reference F from a convex quad `source` to `target` past `occluders` (plain polygons): the quad cut into n x n
+// bilinear pieces, each integrated by visible_polygon_to_polygon at `tol` and weighted by its share of the area.
+// Independent of the assembly's elements and merged occluders; n = 2, 4, 8 agreed to 3e-13 on storey.obj's
+// cabinet front to the ceiling behind a lamp.
+inline double grid_visible_quad(const Poly& source, const Poly& target, const std::vector<Poly>& occluders, int n = 4,
+                                double tol = 1e-11) {
+  auto at = [&](double u, double v) {
+    return ((1 - u) * (1 - v)) * source[0] + (u * (1 - v)) * source[1] + (u * v) * source[2] + ((1 - u) * v) * source[3];
+  };
+  const double area = mesh::newell_normal(source).norm() / 2;
+  double ref = 0;
+  for (int a = 0; a < n; ++a)
+    for (int c = 0; c < n; ++c) {
+      const double u0 = double(a) / n, u1 = double(a + 1) / n, v0 = double(c) / n, v1 = double(c + 1) / n;
+      const Poly piece = {at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1)};
+      ref += formfactor::visible_polygon_to_polygon(piece, target, occluders, tol).F * (mesh::newell_normal(piece).norm() / 2 / area);
+    }
+  return ref;
+}
+
 }  // namespace lambert::fftest
