@@ -254,10 +254,6 @@ formfactor::Stats stats_of(const formfactor::HierarchyStats& h, const formfactor
   st.row_visibility_sigma = h.row_visibility_sigma;
   st.row_visibility_sigma_max = h.row_visibility_sigma_max;
   st.rows_above_one = h.rows_above_one;
-  st.rows_above_one_ratio = h.rows_above_one_ratio;
-  st.rows_above_one_worst = h.rows_above_one_worst;
-  st.rows_above_one_worst_sum = h.rows_above_one_worst_sum;
-  st.rows_above_one_worst_allowed = h.rows_above_one_worst_allowed;
   st.seconds["form_factors"] = h.seconds_total;
   st.bytes = h.bytes;
   return st;
@@ -344,14 +340,14 @@ std::vector<Finding> assess(const Run& r) {
   // A row above 1 beyond its admitted error (formfactor::Stats::rows_above_one): the bounds do not hold. Fatal
   // where visibility is exact (the bound is a bound); a warning where rays estimate it (sigmas are estimates) and
   // under the hierarchy (its links' errors are estimates).
-  if (r.ff && !r.adaptive && r.ff->rows_above_one > 0) {
+  if (r.ff && !r.adaptive && r.ff->rows_above_one.rows > 0) {
     const formfactor::Stats& st = *r.ff;
+    const formfactor::RowsAboveOne& ra = st.rows_above_one;
     const bool rays = st.pairs_ray_tested > 0 || r.hierarchy;
-    add("rows_above_one", double(st.rows_above_one),
+    add("rows_above_one", double(ra.rows),
         fmt::format("{} rows sum above 1 by more than their admitted error (no patch sees more than its hemisphere): "
                     "patch {} sums to 1 + {:.3g}, {:.3g}x its bound {:.2e}{}",
-                    st.rows_above_one, st.rows_above_one_worst, st.rows_above_one_worst_sum - 1,
-                    st.rows_above_one_ratio, st.rows_above_one_worst_allowed,
+                    ra.rows, ra.worst_patch, ra.worst_row_sum - 1, ra.max_ratio, ra.worst_allowed,
                     r.hierarchy ? " (the hierarchy's admitted row error, an estimate, + 3 + sqrt(2 ln N) sigma of its "
                                   "ray-estimated patch pairs)"
                     : rays ? " (integration bound + 3 + sqrt(2 ln N) sigma of the ray-estimated visibility)"
@@ -474,10 +470,7 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
                       {"portals", {{"openings", h.portals}, {"room_cells", h.room_cells},
                                    {"pairs_refused", h.pairs_portal_culled}, {"seconds", h.seconds_portals}}},
                       {"rays_cast", h.rays_cast}, {"row_error_max", h.row_error_max},
-                      {"rows_above_one", {{"rows", h.rows_above_one}, {"max_ratio", h.rows_above_one_ratio},
-                                          {"worst_patch", h.rows_above_one_worst},
-                                          {"worst_row_sum", h.rows_above_one_worst_sum},
-                                          {"worst_allowed", h.rows_above_one_worst_allowed}}},
+                      {"rows_above_one", h.rows_above_one},
                       {"radiance_error_max", h.radiance_error_max},
                       {"row_visibility_sigma_max", h.row_visibility_sigma_max}, {"bytes", h.bytes},
                       {"bytes_estimate", h.bytes_estimate}, {"dense_pairs_equivalent", h.dense_pairs_equivalent},
@@ -505,10 +498,12 @@ json stats_json(const Run& r, const PhaseTimer& timer, const std::vector<Finding
   return j;
 }
 
-// The summary line of the rows above 1 (formfactor::Stats::rows_above_one).
-std::string rows_above_one_line(double worst_sum, int worst, double ratio, long long rows) {
-  return fmt::format("  rows above 1 largest excess 1 + {:.2e} (patch {}), {:.2g}x its admitted error{}\n", worst_sum - 1,
-                     worst, ratio, rows ? fmt::format("; {} rows beyond it", rows) : "");
+// The summary line of the rows above 1 (formfactor::Stats::rows_above_one), or nothing when no row is above 1.
+std::string rows_above_one_line(const formfactor::RowsAboveOne& r) {
+  if (r.worst_patch < 0) return "";
+  return fmt::format("  rows above 1 largest excess 1 + {:.2e} (patch {}), {:.2g}x its admitted error{}\n",
+                     r.worst_row_sum - 1, r.worst_patch, r.max_ratio,
+                     r.rows ? fmt::format("; {} rows beyond it", r.rows) : "");
 }
 
 std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* check) {
@@ -535,9 +530,7 @@ std::string ff_lines(const formfactor::Stats& s, const formfactor::RowSumCheck* 
                        s.pairs_exact_over_tolerance ? fmt::format(", {} above tolerance", s.pairs_exact_over_tolerance) : "",
                        sec("visibility_exact"), s.pairs_ray_tested, sec("visibility_rays"));
   }
-  if (s.rows_above_one_worst >= 0)
-    out += rows_above_one_line(s.rows_above_one_worst_sum, s.rows_above_one_worst, s.rows_above_one_ratio,
-                               s.rows_above_one);
+  out += rows_above_one_line(s.rows_above_one);
   if (s.reciprocity_check_pairs > 0)
     out += fmt::format("  reciprocity  {} pairs integrated independently in reverse: largest difference {:.2e} relative, "
                        "{:.2g}x its error bound ({})\n",
@@ -572,9 +565,7 @@ std::string summary(const Run& r, const PhaseTimer& timer, const std::vector<Fin
                      h.pairs_shaft_clear, h.rays_cast,
                      h.tolerance, h.link_tolerance, h.row_error_max, h.radiance_error_max, h.row_visibility_sigma_max, h.row_sum_min, h.row_sum_mean, h.row_sum_max,
                      per_level.empty() ? "-" : per_level);
-    if (h.rows_above_one_worst >= 0)
-      s += rows_above_one_line(h.rows_above_one_worst_sum, h.rows_above_one_worst, h.rows_above_one_ratio,
-                               h.rows_above_one);
+    s += rows_above_one_line(h.rows_above_one);
     if (h.enclosures > 0)
       s += fmt::format("  enclosures   {} closed surfaces ({} patches): {} cells{}; {} node pairs facing different cells "
                        "refused without rays ({:.2f} s)\n",

@@ -20,6 +20,7 @@
 
 #include "batch.hpp"
 #include "hierarchy_internal.hpp"
+#include "internal.hpp"
 #include "enclosures.hpp"
 #include "portals.hpp"
 #include "exact_visibility.hpp"
@@ -1249,19 +1250,7 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     st.row_sum_mean = rs.mean();
     // Rows above 1 beyond their admitted error (as formfactor::Stats::rows_above_one; dark rows left out, their
     // rows unresolved).
-    const double k_sigma = 3 + std::sqrt(2 * std::log(std::max(2.0, double(n))));
-    for (int p = 0; p < n; ++p) {
-      if (!st.row_dark.empty() && st.row_dark[size_t(p)]) continue;
-      const double allowed = st.row_error[size_t(p)] + k_sigma * st.row_visibility_sigma[size_t(p)] + 1e-11;
-      const double ratio = (rs[p] - 1) / allowed;
-      if (ratio > 1) ++st.rows_above_one;
-      if (ratio > st.rows_above_one_ratio) {
-        st.rows_above_one_ratio = ratio;
-        st.rows_above_one_worst = p;
-        st.rows_above_one_worst_sum = rs[p];
-        st.rows_above_one_worst_allowed = allowed;
-      }
-    }
+    st.rows_above_one = detail::find_rows_above_one(d.row_sums, st.row_error, st.row_visibility_sigma, st.row_dark);
   };
   if (o.threads > 0) {
     tbb::task_arena arena(o.threads);

@@ -10,6 +10,7 @@
 
 #include "atan_reduced.hpp"
 #include "batch.hpp"
+#include "lambert/formfactor/assemble.hpp"
 #include "lambert/mesh/geometry.hpp"
 
 namespace lambert::formfactor::detail {
@@ -147,5 +148,10 @@ ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol);
 
 // Signed distances of polygon corners to a plane: returns (min, max).
 std::array<double, 2> plane_range(std::span<const Vec3> poly, const Vec3& n, double offset);
+
+// Stats::rows_above_one from per-row sums, admitted errors and visibility sigmas (equal sizes); rows with
+// skip[i] != 0 (skip empty or of the same size) are left out.
+RowsAboveOne find_rows_above_one(std::span<const double> row_sums, std::span<const double> error,
+                                 std::span<const double> sigma, std::span<const std::uint8_t> skip = {});
 
 }  // namespace lambert::formfactor::detail

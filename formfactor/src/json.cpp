@@ -4,6 +4,14 @@
 
 namespace lambert::formfactor {
 
+void to_json(nlohmann::json& j, const RowsAboveOne& r) {
+  j = {{"rows", r.rows},
+       {"max_ratio", r.max_ratio},
+       {"worst_patch", r.worst_patch},
+       {"worst_row_sum", r.worst_row_sum},
+       {"worst_allowed", r.worst_allowed}};
+}
+
 void to_json(nlohmann::json& j, const Stats& s) {
   j = nlohmann::json::object();
   j["rule"] = s.rule;
@@ -38,11 +46,7 @@ void to_json(nlohmann::json& j, const Stats& s) {
   j["occluders"] = s.occluders;
   j["row_sum"] = {{"min", s.row_sum_min}, {"max", s.row_sum_max}, {"mean", s.row_sum_mean}};
   j["row_error_bound_max"] = s.row_error_bound_max;
-  j["rows_above_one"] = {{"rows", s.rows_above_one},
-                         {"max_ratio", s.rows_above_one_ratio},
-                         {"worst_patch", s.rows_above_one_worst},
-                         {"worst_row_sum", s.rows_above_one_worst_sum},
-                         {"worst_allowed", s.rows_above_one_worst_allowed}};
+  j["rows_above_one"] = s.rows_above_one;
   j["row_visibility_sigma_max"] = s.row_visibility_sigma_max;
   j["reciprocity_check_pairs"] = s.reciprocity_check_pairs;
   j["reciprocity_residual"] = s.reciprocity_residual;

@@ -11,6 +11,27 @@ namespace lambert::formfactor::detail {
 // Slack for a row sum's round-off: rows of up to ~1e5 entries of at most 1, each rounded to 1.1e-16.
 constexpr double kRowSumRoundoff = 1e-11;
 
+RowsAboveOne find_rows_above_one(std::span<const double> row_sums, std::span<const double> error,
+                                 std::span<const double> sigma, std::span<const std::uint8_t> skip) {
+  RowsAboveOne r;
+  const size_t n = row_sums.size();
+  // The rays' sigmas are estimates, and the largest of n rows' noise is about sqrt(2 ln n) sigma: k = 3 + that.
+  const double k_sigma = 3 + std::sqrt(2 * std::log(std::max(2.0, double(n))));
+  for (size_t i = 0; i < n; ++i) {
+    if (!skip.empty() && skip[i]) continue;
+    const double allowed = error[i] + k_sigma * sigma[i] + kRowSumRoundoff;
+    const double ratio = (row_sums[i] - 1) / allowed;
+    if (ratio > 1) ++r.rows;
+    if (ratio > r.max_ratio) {
+      r.max_ratio = ratio;
+      r.worst_patch = int(i);
+      r.worst_row_sum = row_sums[i];
+      r.worst_allowed = allowed;
+    }
+  }
+  return r;
+}
+
 void Assembler::collect_stats(const std::vector<Counters*>& counters) {
   const int n = g_.size();
   std::vector<double> rows(n, 0.0);
@@ -71,21 +92,9 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
     for (double r : rows) sum += r;
     st_.row_sum_mean = sum / n;
   }
-  // (Not with reused pairs, whose error bounds are not carried over.) The rays' sigmas are estimates, and the
-  // largest of n rows' noise is about sqrt(2 ln n) sigma: k = 3 + that.
-  const double k_sigma = 3 + std::sqrt(2 * std::log(std::max(2.0, double(n))));
+  // (Not with reused pairs, whose error bounds are not carried over.)
   if (o_.rule == Rule::Adaptive && o_.visibility && st_.pairs_reused == 0)
-    for (int i = 0; i < n; ++i) {
-      const double allowed = st_.row_error_bound[i] + k_sigma * st_.row_visibility_sigma[i] + kRowSumRoundoff;
-      const double ratio = (rows[i] - 1) / allowed;
-      if (ratio > 1) ++st_.rows_above_one;
-      if (ratio > st_.rows_above_one_ratio) {
-        st_.rows_above_one_ratio = ratio;
-        st_.rows_above_one_worst = i;
-        st_.rows_above_one_worst_sum = rows[i];
-        st_.rows_above_one_worst_allowed = allowed;
-      }
-    }
+    st_.rows_above_one = find_rows_above_one(rows, st_.row_error_bound, st_.row_visibility_sigma);
   // Wall-time share of visibility inside "form_factors" (integration and visibility interleave per tile).
   const double per_thread_second = tile_seconds > 0 ? st_.seconds["form_factors"] / tile_seconds : 0.0;
   st_.seconds["visibility"] = per_thread_second * visibility_seconds;

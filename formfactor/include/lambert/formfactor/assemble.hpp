@@ -115,6 +115,17 @@ struct Options {
 // The formula and its measured effect are in docs/benchmarks.md ("Default form-factor tolerance").
 double default_tolerance(double max_reflectance);
 
+// Rows that sum above 1 by more than their admitted error, error[i] + k sigma[i] + 1e-11 (summation round-off;
+// k = 3 + sqrt(2 ln N), N rows: the largest of N rows' ray noise is about sqrt(2 ln N) sigma). No patch sees more
+// than its whole hemisphere (first-hit visibility; glazing is opaque here), so such a row proves an error beyond the
+// stated bounds, in any scene, open or closed.
+struct RowsAboveOne {
+  long long rows = 0;        // rows beyond their admitted error
+  double max_ratio = 0;      // largest (row sum - 1) / admitted error over the rows above 1 (0 if none; <= 1: all fine)
+  int worst_patch = -1;      // its row (-1 if no row is above 1)
+  double worst_row_sum = 0, worst_allowed = 0;  // its sum and admitted error
+};
+
 struct Stats {
   // What the assembly used (Options, resolved): the rule's name (to_string), the per-entry tolerance
   // (Options::tolerance or the automatic one), visibility, rays per pair.
@@ -150,18 +161,10 @@ struct Stats {
   bool scene_can_occlude = false;  // false: no patch can block another (convex enclosure), no rays at all
   int occluders = 0;               // patches that can block something (the ray-tracing scene)
   double row_sum_min = 0, row_sum_max = 0, row_sum_mean = 0;
-  // Rows that sum above 1 by more than their admitted error, row_error_bound[i] + k row_visibility_sigma[i] +
-  // 1e-11 (summation round-off; k = 3 + sqrt(2 ln N), N patches: the largest of N rows' ray noise is about
-  // sqrt(2 ln N) sigma): no patch sees more than its whole hemisphere (first-hit visibility; glazing is
-  // opaque here), so such a row proves an error beyond the stated bounds, in any scene, open or closed. Counted
-  // under the adaptive rule with visibility and no reused pairs only (the fixed rules state no bound; without
-  // visibility a row counts hidden surfaces too; reused pairs' bounds are not carried over). rows_above_one_ratio: the largest (row sum - 1) / admitted error over the rows
-  // above 1 (0 if none; <= 1 when every row is within its error), at row rows_above_one_worst (-1 if none),
-  // whose sum and admitted error follow.
-  long long rows_above_one = 0;
-  double rows_above_one_ratio = 0;
-  int rows_above_one_worst = -1;
-  double rows_above_one_worst_sum = 0, rows_above_one_worst_allowed = 0;
+  // Rows above 1 beyond their admitted error (RowsAboveOne). Counted under the adaptive rule with visibility and no
+  // reused pairs only (the fixed rules state no bound; without visibility a row counts hidden surfaces too; reused
+  // pairs' bounds are not carried over).
+  RowsAboveOne rows_above_one;
 
   // Error admitted by the assembly, per row i (dimensionless, like F). Reused pairs contribute 0.
   //   row_error_bound[i]: sum_j of the integration error bound of F_ij (the a-priori model's estimate, or the

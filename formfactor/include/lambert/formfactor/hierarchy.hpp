@@ -129,12 +129,8 @@ struct HierarchyStats {
   double radiance_error_max = 0;   // largest admitted radiance error of one gather, relative to L_ref
   double row_sum_min = 0, row_sum_max = 0, row_sum_mean = 0;
   // Rows summing above 1 by more than row_error + k row_visibility_sigma + 1e-11 (dark rows not counted), as
-  // formfactor::Stats::rows_above_one: the largest ratio (0 if no row is above 1), its patch (-1 if none), its
-  // sum and admitted error. The links' errors are estimates, so this is evidence, not proof, of a wrong row.
-  long long rows_above_one = 0;
-  double rows_above_one_ratio = 0;
-  int rows_above_one_worst = -1;
-  double rows_above_one_worst_sum = 0, rows_above_one_worst_allowed = 0;
+  // formfactor::Stats::rows_above_one. The links' errors are estimates, so this is evidence, not proof, of a wrong row.
+  RowsAboveOne rows_above_one;
   std::size_t bytes = 0;           // memory held by the operator
   std::size_t bytes_estimate = 0;  // what was estimated before building
   double seconds_tree = 0, seconds_links = 0, seconds_total = 0;

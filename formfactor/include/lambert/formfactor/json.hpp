@@ -8,5 +8,6 @@
 namespace lambert::formfactor {
 
 void to_json(nlohmann::json& j, const Stats& s);
+void to_json(nlohmann::json& j, const RowsAboveOne& r);  // rows, max_ratio, worst_patch, worst_row_sum, worst_allowed
 
 }  // namespace lambert::formfactor
