@@ -1249,8 +1249,9 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
     st.row_sum_max = rs.maxCoeff();
     st.row_sum_mean = rs.mean();
     // Rows above 1 beyond their admitted error (as formfactor::Stats::rows_above_one; dark rows left out, their
-    // rows unresolved).
-    st.rows_above_one = detail::find_rows_above_one(d.row_sums, st.row_error, st.row_visibility_sigma, st.row_dark);
+    // rows unresolved; not without visibility, where a row counts hidden surfaces too).
+    if (o.visibility)
+      st.rows_above_one = detail::find_rows_above_one(d.row_sums, st.row_error, st.row_visibility_sigma, st.row_dark);
   };
   if (o.threads > 0) {
     tbb::task_arena arena(o.threads);
