@@ -152,8 +152,8 @@ int main(int argc, char** argv) {
     if (against) other1 += std::abs(e.G - e.ref) > 1e-8, other_worst = std::max(other_worst, std::abs(e.G - e.ref));
   if (against)
     std::printf("%s: of the same entries %d off by > 1e-8, largest |difference| %.2e\n", against, other1, other_worst);
-  std::printf("%s: %zu entries compared (F >= %.0e, faces of one patch each, occluders near%s): %d off by > 1e-8, %d by "
-              "> 2e-8; largest |difference| %.2e (faces %d -> %d); %.1f s\n",
+  std::printf("%s: %zu entries compared (F >= %.0e, faces of one patch each, occluders near%s): %d off by > 1e-8, "
+              "%d by > 2e-8; largest |difference| %.2e (faces %d -> %d); %.1f s\n",
               argv[2], entries.size(), min_f, against ? ", differing from the other run by > 1e-8" : "", over1, over2,
               entries.empty() ? 0.0 : std::abs(entries[0].F - entries[0].ref), entries.empty() ? -1 : entries[0].fi,
               entries.empty() ? -1 : entries[0].fj, seconds);

@@ -64,8 +64,8 @@ class ExactPairChecker {
     const bool swap = g_.area[j] < g_.area[i];  // integrated from the smaller patch, as the assembly does
     const int src = swap ? j : i, tgt = swap ? i : j;
     const auto e = d::exact_hidden_pair(g_.polygon(src), P_.nrm[src], g_.area[src], convex_[size_t(src)] != 0,
-                                        g_.polygon(tgt), P_.nrm[tgt], convex_[size_t(tgt)] != 0, occ, merged_tolerance, scale_,
-                                        scratch);
+                                        g_.polygon(tgt), P_.nrm[tgt], convex_[size_t(tgt)] != 0, occ, merged_tolerance,
+                                        scale_, scratch);
     r.outcome = e.outcome;
     r.points = e.points;
     r.over_tolerance = e.over_tolerance;

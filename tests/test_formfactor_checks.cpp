@@ -179,10 +179,10 @@ TEST(FormFactorChecks, NoRowAboveOneBeyondItsBoundOnCorrectMatrices) {
   for (const auto& [g, o] : cases) {
     Stats st;
     assemble(*g, o, &st);
-    EXPECT_EQ(st.rows_above_one.rows, 0) << g->size() << " patches, " << st.visibility_method << ": worst row "
-                                    << st.rows_above_one.worst_patch << " sums to 1 + " << st.rows_above_one.worst_row_sum - 1
-                                    << ", allowed " << st.rows_above_one.worst_allowed;
-    EXPECT_LE(st.rows_above_one.max_ratio, 1.0);
+    const RowsAboveOne& ra = st.rows_above_one;
+    EXPECT_EQ(ra.rows, 0) << g->size() << " patches, " << st.visibility_method << ": worst row " << ra.worst_patch
+                          << " sums to 1 + " << ra.worst_row_sum - 1 << ", allowed " << ra.worst_allowed;
+    EXPECT_LE(ra.max_ratio, 1.0);
   }
 }
 
@@ -199,8 +199,8 @@ TEST(FormFactorChecks, RowsAboveOneDetectAnOverestimatingTier) {
     o.fault_relative = 1e-2;
     Stats st;
     assemble(sphere(), o, &st);
-    EXPECT_GT(st.rows_above_one.rows, 0) << "fault in " << method << " (" << count << " pairs) not seen; largest ratio "
-                                    << st.rows_above_one.max_ratio;
+    EXPECT_GT(st.rows_above_one.rows, 0) << "fault in " << method << " (" << count
+                                         << " pairs) not seen; largest ratio " << st.rows_above_one.max_ratio;
     EXPECT_GT(st.rows_above_one.max_ratio, 1.0) << method;
   }
 }

@@ -484,7 +484,8 @@ TEST(ExactVisibilityNumerics, EntriesMeetTheToleranceWhereEstimatesWereOptimisti
       return found;
     };
     const int pi = find(c.face_i, c.corners_i), pj = find(c.face_j, c.corners_j);
-    const std::string what = std::string(c.file) + ", faces " + std::to_string(c.face_i) + " -> " + std::to_string(c.face_j);
+    const std::string what =
+        std::string(c.file) + ", faces " + std::to_string(c.face_i) + " -> " + std::to_string(c.face_j);
     ASSERT_GE(pi, 0) << what << ": one patch of the face must have those corners (the example changed?)";
     ASSERT_GE(pj, 0) << what << ": one patch of the face must have those corners (the example changed?)";
     const fftest::ExactPairChecker checker(g);

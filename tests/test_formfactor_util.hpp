@@ -176,7 +176,8 @@ inline double strips_from_apex_visible(const Poly& source, const Poly& target, c
 inline double grid_visible_quad(const Poly& source, const Poly& target, const std::vector<Poly>& occluders, int n = 4,
                                 double tol = 1e-11) {
   auto at = [&](double u, double v) {
-    return ((1 - u) * (1 - v)) * source[0] + (u * (1 - v)) * source[1] + (u * v) * source[2] + ((1 - u) * v) * source[3];
+    return ((1 - u) * (1 - v)) * source[0] + (u * (1 - v)) * source[1] + (u * v) * source[2] +
+           ((1 - u) * v) * source[3];
   };
   const double area = mesh::newell_normal(source).norm() / 2;
   double ref = 0;
@@ -184,7 +185,8 @@ inline double grid_visible_quad(const Poly& source, const Poly& target, const st
     for (int c = 0; c < n; ++c) {
       const double u0 = double(a) / n, u1 = double(a + 1) / n, v0 = double(c) / n, v1 = double(c + 1) / n;
       const Poly piece = {at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1)};
-      ref += formfactor::visible_polygon_to_polygon(piece, target, occluders, tol).F * (mesh::newell_normal(piece).norm() / 2 / area);
+      const double share = mesh::newell_normal(piece).norm() / 2 / area;
+      ref += formfactor::visible_polygon_to_polygon(piece, target, occluders, tol).F * share;
     }
   return ref;
 }

@@ -72,7 +72,8 @@ TEST(Hierarchy, MatchesDenseWithinAdmittedError) {
     const HierarchicalOperator H = build_hierarchy(c.g, ho, &st);
     // No row above 1 beyond its admitted error (the summary's `rows above 1`): closed scenes, rows of 1.
     EXPECT_EQ(st.rows_above_one.rows, 0) << c.name << ": row " << st.rows_above_one.worst_patch << " sums to 1 + "
-                                    << st.rows_above_one.worst_row_sum - 1 << ", allowed " << st.rows_above_one.worst_allowed;
+                                         << st.rows_above_one.worst_row_sum - 1 << ", allowed "
+                                         << st.rows_above_one.worst_allowed;
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> U(0, 1);
     for (int trial = 0; trial < 2; ++trial) {
@@ -236,7 +237,8 @@ TEST(Hierarchy, ExactVisibilityRowSumsWithinAdmittedError) {
     worst = std::max(worst, dev);
     EXPECT_LE(dev, st.row_error[size_t(i)] + 1e-9) << "row " << i << " sums to " << H.row_sum(i);
   }
-  EXPECT_EQ(st.rows_above_one.rows, 0) << "row " << st.rows_above_one.worst_patch << " ratio " << st.rows_above_one.max_ratio;
+  EXPECT_EQ(st.rows_above_one.rows, 0) << "row " << st.rows_above_one.worst_patch << " ratio "
+                                       << st.rows_above_one.max_ratio;
   std::printf("exact visibility in the hierarchy: max |row sum - 1| %.2e, admitted %.2e\n", worst, st.row_error_max);
 }
 
