@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
     if (fi < 0 || fj < 0 || fi >= scene.input_faces || fj >= scene.input_faces || std::max(F, G) < min_f) return;
     if (against && !(std::abs(F - G) > 1e-8)) return;
     const int i = patch_of[size_t(fi)], j = patch_of[size_t(fj)];
-    if (i < 0 || j < 0 || near_of(i, j).empty()) return;
+    if (i < 0 || j < 0) return;
     entries.push_back({fi, fj, i, j, F, 0, G});
   };
   for (const auto& [k, F] : file) {
@@ -109,27 +109,17 @@ int main(int argc, char** argv) {
       if (!file.count(k)) consider(k.first, k.second, 0.0, G);
   std::mt19937 rng(seed);
   std::shuffle(entries.begin(), entries.end(), rng);
-  if (int(entries.size()) > n_draw) entries.resize(size_t(n_draw));
+  // The first n_draw of the shuffled entries that a patch near them may occlude (the box test only for those read).
+  size_t kept = 0;
+  for (size_t k = 0; k < entries.size() && int(kept) < n_draw; ++k)
+    if (!near_of(entries[k].i, entries[k].j).empty()) entries[kept++] = entries[k];
+  entries.resize(kept);
   tbb::parallel_for(size_t(0), entries.size(), [&](size_t k) {
     Entry& e = entries[k];
     const Poly Pi(g.polygon(e.i).begin(), g.polygon(e.i).end()), Pj(g.polygon(e.j).begin(), g.polygon(e.j).end());
     std::vector<Poly> occ;
     for (int q : near_of(e.i, e.j)) occ.emplace_back(g.polygon(q).begin(), g.polygon(q).end());
-    bool convex_quad = Pi.size() == 4;
-    const Vec3 n = g.normal[e.i];
-    for (size_t c = 0; c < 4 && convex_quad; ++c)
-      convex_quad = (Pi[(c + 1) % 4] - Pi[c]).cross(Pi[(c + 2) % 4] - Pi[(c + 1) % 4]).dot(n) > 0;
-    if (Pi.size() == 3) {
-      e.ref = fftest::strips_from_apex_visible(Pi, Pj, occ, 50);
-    } else if (convex_quad) {
-      e.ref = fftest::grid_visible_quad(Pi, Pj, occ, 4);
-    } else {
-      const double area = mesh::newell_normal(Pi).norm() / 2;
-      for (const auto& t : mesh::triangulate_polygon(Pi, n)) {
-        const Poly tri = {Pi[size_t(t[0])], Pi[size_t(t[1])], Pi[size_t(t[2])]};
-        e.ref += fftest::strips_from_apex_visible(tri, Pj, occ, 50) * (mesh::newell_normal(tri).norm() / 2 / area);
-      }
-    }
+    e.ref = fftest::pieces_visible(Pi, g.normal[e.i], Pj, occ);
   });
   std::sort(entries.begin(), entries.end(),
             [](const Entry& a, const Entry& b) { return std::abs(a.F - a.ref) > std::abs(b.F - b.ref); });

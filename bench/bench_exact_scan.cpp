@@ -144,17 +144,8 @@ int main(int argc, char** argv) {
     int kk = k;
     const char* grid_env = std::getenv("LAMBERT_SCAN_GRID");
     const int grid = grid_env ? std::atoi(grid_env) : 0;
-    if (grid > 0 && Pi.size() != 4) {  // any other source: its triangles, each in 10 x grid strips from its apex
-      m = 0;
-      const double area = lambert::mesh::newell_normal(Pi).norm() / 2;
-      for (const auto& t : lambert::mesh::triangulate_polygon(Pi, g.normal[r.i])) {
-        const Poly tri = {Pi[size_t(t[0])], Pi[size_t(t[1])], Pi[size_t(t[2])]};
-        m += lambert::fftest::strips_from_apex_visible(tri, Pj, patches, 10 * grid) *
-             (lambert::mesh::newell_normal(tri).norm() / 2 / area);
-      }
-      me = std::abs(r.merged - m) > 1.2e-8, un = std::abs(r.unmerged - m) > 1.2e-8;
-    } else if (grid > 0) {  // the quad source cut into grid x grid bilinear pieces, each at 1e-11
-      m = lambert::fftest::grid_visible_quad(Pi, Pj, patches, grid);
+    if (grid > 0) {  // triangles in 10 x grid strips, quads in grid x grid pieces (pieces_visible)
+      m = lambert::fftest::pieces_visible(Pi, g.normal[r.i], Pj, patches, 10 * grid, grid);
       me = std::abs(r.merged - m) > 1.2e-8, un = std::abs(r.unmerged - m) > 1.2e-8;
     } else if (needle) {
       m = lambert::fftest::strips_from_apex_visible(Pi, Pj, patches, 50);
@@ -167,8 +158,8 @@ int main(int argc, char** argv) {
       kk /= 2;
     }
     if (off) merged_off += me && !un, unmerged_off += un && !me, both_off += me && un, undecided += !me && !un;
-    const std::string ref = grid > 0 && Pi.size() != 4 ? "triangles in " + std::to_string(10 * grid) + " strips"
-                            : grid > 0 ? "grid " + std::to_string(grid) + " x " + std::to_string(grid)
+    const std::string ref = grid > 0 ? "pieces (" + std::to_string(10 * grid) + " strips or " + std::to_string(grid) +
+                                           " x " + std::to_string(grid) + ")"
                             : needle ? std::string("strips, 50 from the apex")
                                      : "midpoint k = " + std::to_string(kk);
     char verdict[240];

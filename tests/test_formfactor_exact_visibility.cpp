@@ -495,9 +495,7 @@ TEST(ExactVisibilityNumerics, EntriesMeetTheToleranceWhereEstimatesWereOptimisti
     const Poly Pi(g.polygon(pi).begin(), g.polygon(pi).end()), Pj(g.polygon(pj).begin(), g.polygon(pj).end());
     std::vector<Poly> occ;
     for (int q : r.near) occ.emplace_back(g.polygon(q).begin(), g.polygon(q).end());
-    ASSERT_TRUE(Pi.size() == 3 || Pi.size() == 4) << what;
-    const double ref = Pi.size() == 3 ? fftest::strips_from_apex_visible(Pi, Pj, occ, 50)
-                                      : fftest::grid_visible_quad(Pi, Pj, occ, 4);
+    const double ref = fftest::pieces_visible(Pi, g.normal[pi], Pj, occ);  // 50 strips or 4 x 4 pieces
     EXPECT_NEAR(r.merged, ref, 1e-8) << what << " (patches " << pi << ", " << pj << "): " << r.occluders
                                      << " occluders, estimate " << r.estimate << ", " << r.points << " points";
   }

@@ -191,4 +191,24 @@ inline double grid_visible_quad(const Poly& source, const Poly& target, const st
   return ref;
 }
 
+// Reference F from any planar `source` (unit normal n) to `target` past `occluders`: a triangle in `strips` strips
+// from its apex (strips_from_apex_visible), a convex quad in `grid` x `grid` pieces (grid_visible_quad), any other
+// polygon by its triangles in strips, weighted by their areas. What bench_exact_scan, bench_exact_entries and the
+// tests take as an independent reference.
+inline double pieces_visible(const Poly& source, const Vec3& n, const Poly& target, const std::vector<Poly>& occluders,
+                             int strips = 50, int grid = 4) {
+  if (source.size() == 3) return strips_from_apex_visible(source, target, occluders, strips);
+  bool convex_quad = source.size() == 4;
+  for (size_t c = 0; c < 4 && convex_quad; ++c)
+    convex_quad = (source[(c + 1) % 4] - source[c]).cross(source[(c + 2) % 4] - source[(c + 1) % 4]).dot(n) > 0;
+  if (convex_quad) return grid_visible_quad(source, target, occluders, grid);
+  const double area = mesh::newell_normal(source).norm() / 2;
+  double ref = 0;
+  for (const auto& t : mesh::triangulate_polygon(source, n)) {
+    const Poly tri = {source[size_t(t[0])], source[size_t(t[1])], source[size_t(t[2])]};
+    ref += strips_from_apex_visible(tri, target, occluders, strips) * (mesh::newell_normal(tri).norm() / 2 / area);
+  }
+  return ref;
+}
+
 }  // namespace lambert::fftest
