@@ -4,6 +4,8 @@
 // entries were off by up to 1.7e-7 where the scan's re-runs were right).
 //
 //   bench_exact_entries MODEL F.csv [N] [SEED] [MIN_F]
+//   (with LAMBERT_ENTRIES_PATCHES="s,t;s,t": only the references' unoccluded, visible and hidden F of those patch pairs,
+//   from patch s; the file is not read)
 //   (with LAMBERT_ENTRIES_AGAINST=G.csv, another run's output of the same model: only the entries where the two differ
 //   by more than 1e-8 are drawn, and G's value is shown beside F's: which run is right)
 //
@@ -67,6 +69,23 @@ int main(int argc, char** argv) {
       if (q != i && q != j && box[size_t(q)].intersects(b)) near.push_back(q);
     return near;
   };
+  // LAMBERT_ENTRIES_PATCHES="s,t;s,t;...": the hidden part H = F_st(unoccluded) - F_st(visible) of these patch pairs
+  // (patch indices, from the source s), by the same references, then exit.
+  if (const char* pairs = std::getenv("LAMBERT_ENTRIES_PATCHES")) {
+    std::istringstream ps(pairs);
+    std::string item;
+    while (std::getline(ps, item, ';')) {
+      int s = -1, t = -1;
+      if (std::sscanf(item.c_str(), "%d,%d", &s, &t) != 2 || s < 0 || t < 0 || s >= g.size() || t >= g.size()) continue;
+      const Poly Ps(g.polygon(s).begin(), g.polygon(s).end()), Pt(g.polygon(t).begin(), g.polygon(t).end());
+      std::vector<Poly> occ;
+      for (int q : near_of(s, t)) occ.emplace_back(g.polygon(q).begin(), g.polygon(q).end());
+      const double vis = fftest::pieces_visible(Ps, g.normal[s], Pt, occ), all = fftest::pieces_visible(Ps, g.normal[s], Pt, {});
+      std::printf("patches %d -> %d: F unoccluded %.10e, visible %.10e, hidden %.10e (%zu occluders near)\n", s, t, all,
+                  vis, all - vis, occ.size());
+    }
+    return 0;
+  }
   struct Entry {
     int fi, fj, i, j;
     double F, ref = 0, G = 0;  // G: the other run's value (LAMBERT_ENTRIES_AGAINST)

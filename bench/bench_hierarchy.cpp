@@ -3,6 +3,8 @@
 //   obj PATH   an OBJ scene (materials from its MTL), e.g. ../shared/models/udales_shape.obj, closed by a
 //              large emitting sky box (Le = 1, rho = 0) around it when --sky is given
 // Usage: bench_hierarchy [--dense] [--two-pass] [--no-portals] [--tolerance T] [--threads K] cube N | obj PATH [--sky]
+// With --dense and LAMBERT_HIERARCHY_ERRORS=FILE: per patch index, centroid, L_h and L_d (channel 0) into FILE (where the
+// hierarchy's error sits).
 // --two-pass: brightness for the refinement from a first solve at 10x the tolerance (an experiment; the CLI
 // uses the a-priori bound Le + rho max Le / (1 - rho_max)).
 // The dense reference (--dense) is assembled at the default tolerance and solved to 1e-10; the error is
@@ -179,6 +181,13 @@ int main(int argc, char** argv) {
     for (int i = 0; i < N; ++i)
       for (int c = 0; c < 3; ++c)
         if (std::abs(sh.radiance(i, c) - sd.radiance(i, c)) > worst) worst = std::abs(sh.radiance(i, c) - sd.radiance(i, c)), at = i;
+    if (const char* dump = std::getenv("LAMBERT_HIERARCHY_ERRORS")) {  // per patch: centroid, L_h, L_d (channel 0)
+      std::FILE* f = std::fopen(dump, "w");
+      for (int i = 0; f && i < N; ++i)
+        std::fprintf(f, "%d,%.9g,%.9g,%.9g,%.17g,%.17g\n", i, p.g.centroid[i].x(), p.g.centroid[i].y(),
+                     p.g.centroid[i].z(), sh.radiance(i, 0), sd.radiance(i, 0));
+      if (f) std::fclose(f);
+    }
     std::printf("dense: assemble %.2f s, solve %.2f s, total %.2f s, VmHWM %.0f MB\n", t_ff, t_ds, t_ff + t_ds,
                 vm_hwm_kb() / 1024.0);
     std::printf("max |L_h - L_d| / max L_d = %.2e (patch %d), speed-up %.1fx\n", worst / lmax, at,

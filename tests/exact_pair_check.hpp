@@ -43,6 +43,9 @@ class ExactPairChecker {
   double scale() const { return scale_; }  // the scene's bounding-box diagonal (m)
 
   double merged_tolerance = 1e-8;  // on H, the merged path's (formfactors --visibility exact uses 1e-8)
+  // Integrate from the larger patch (the assembly integrates from the smaller one): the same pair through an outer
+  // rule on the other patch, an independent route through the same method.
+  bool from_larger = false;
 
   // The pair (i, j): merged at merged_tolerance on H, as formfactors --visibility exact does, with the candidates a
   // box test gives (the assembly's shaft may give fewer); the unmerged reference only if the merged pair was
@@ -61,7 +64,7 @@ class ExactPairChecker {
     std::vector<int> ids;
     std::vector<d::Occluder> occ;
     d::pair_occluders(g_, P_, scale_, r.near, i, j, merged_, convex_, ids, occ);
-    const bool swap = g_.area[j] < g_.area[i];  // integrated from the smaller patch, as the assembly does
+    const bool swap = (g_.area[j] < g_.area[i]) != from_larger;  // from the smaller patch, as the assembly does
     const int src = swap ? j : i, tgt = swap ? i : j;
     const auto e = d::exact_hidden_pair(g_.polygon(src), P_.nrm[src], g_.area[src], convex_[size_t(src)] != 0,
                                         g_.polygon(tgt), P_.nrm[tgt], convex_[size_t(tgt)] != 0, occ, merged_tolerance,

@@ -211,4 +211,43 @@ inline double pieces_visible(const Poly& source, const Vec3& n, const Poly& targ
   return ref;
 }
 
+// Adaptive Gauss-Kronrod (7-point Gauss inside the 15-point Kronrod rule) of f on [a, b]: an interval is bisected
+// until the two rules agree within its share of tol (or at depth 30).
+template <class F>
+double gauss_kronrod(const F& f, double a, double b, double tol, int depth = 0) {
+  static constexpr double xk[8] = {0.991455371120812639, 0.949107912342758525, 0.864864423359769073,
+                                   0.741531185599394440, 0.586087235467691130, 0.405845151377397167,
+                                   0.207784955007898468, 0.0};
+  static constexpr double wk[8] = {0.022935322010529225, 0.063092092629978553, 0.104790010322250184,
+                                   0.140653259715525919, 0.169004726639267903, 0.190350578064785410,
+                                   0.204432940075298892, 0.209482141084727828};
+  static constexpr double wg[4] = {0.129484966168869693, 0.279705391489276668, 0.381830050505118945,
+                                   0.417959183673469388};
+  const double c = 0.5 * (a + b), h = 0.5 * (b - a), fc = f(c);
+  double K = wk[7] * fc, G = wg[3] * fc;
+  for (int k = 0; k < 7; ++k) {
+    const double f1 = f(c - h * xk[k]), f2 = f(c + h * xk[k]);
+    K += wk[k] * (f1 + f2);
+    if (k % 2 == 1) G += wg[k / 2] * (f1 + f2);
+  }
+  K *= h, G *= h;
+  if (std::abs(K - G) <= tol || depth >= 30) return K;
+  return gauss_kronrod(f, a, c, 0.5 * tol, depth + 1) + gauss_kronrod(f, c, b, 0.5 * tol, depth + 1);
+}
+
+// Reference A_s F(s -> target past occluders) for a convex quad `source` (unit normal n): nested adaptive
+// Gauss-Kronrod over its bilinear parameters, each point by visible_point_to_polygon. It shares no outer rule,
+// element split or critical line with the exact path (its bisections follow the integrand wherever its kinks are).
+inline double nested_gauss_kronrod_visible(const Poly& source, const Vec3& n, const Poly& target,
+                                           const std::vector<Poly>& occluders, double tol) {
+  const Poly& v = source;
+  auto f = [&](double u, double w) {
+    const Vec3 x = (1 - u) * (1 - w) * v[0] + u * (1 - w) * v[1] + u * w * v[2] + (1 - u) * w * v[3];
+    const Vec3 ds = (1 - w) * (v[1] - v[0]) + w * (v[2] - v[3]), dt = (1 - u) * (v[3] - v[0]) + u * (v[2] - v[1]);
+    return std::abs(ds.cross(dt).dot(n)) * formfactor::visible_point_to_polygon(x, n, target, occluders);
+  };
+  return gauss_kronrod([&](double w) { return gauss_kronrod([&](double u) { return f(u, w); }, 0, 1, tol); }, 0, 1,
+                       tol);
+}
+
 }  // namespace lambert::fftest
