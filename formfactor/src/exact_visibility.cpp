@@ -1122,16 +1122,18 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
   // A face of a closed convex solid (convex_solids) matters only through the solid's silhouette: a target corner
   // lines up with a silhouette edge only through the face of that edge it sees from the front (of the edge's two
   // faces, exactly one faces the corner), and the silhouette changes its corners only where x crosses a face's
-  // plane (the traces made for every occluder below). A corner on a face's plane (within eps) sees that face edge-on
-  // and keeps its lines: window_room.obj's cupboard has a corner on a wall triangle's corner, and the line where the
-  // cupboard's bottom starts to hide that triangle (from the triangle's corner and the bottom's far edge) was left out
-  // with `>=`: integrated from the side wall, F 1.8e-6 high with an estimate of 6.6e-9.
+  // plane (the traces made for every occluder below). A corner on a face's plane sees that face edge-on and keeps
+  // its lines (within 100 eps, 1e-8 of the scene: the merge moves corners by up to 1e-9 of it). window_room.obj's
+  // cupboard has a corner on a wall triangle's corner, and the line where the cupboard's bottom starts to hide that
+  // triangle (from the triangle's corner and the bottom's far edge) was left out with `>=`: integrated from the side
+  // wall, F 1.8e-6 high with an estimate of 6.6e-9.
+  const double on_face = 100 * eps;
   for (size_t k = 0; k < occ.size(); ++k) {
     const auto& O = occ[k];
     if (O.size() < 3) continue;
     const Occluder& src = pool[k];
     for (const Vec3& v : ct)
-      if (!(src.cull && src.inner.dot(v) > src.inner_offset + eps)) project(v, O, true);
+      if (!(src.cull && src.inner.dot(v) > src.inner_offset + on_face)) project(v, O, true);
     for (const Vec3& w : O) project(w, ct, true);
     // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
     // shrinks to a segment there, and a solid's face joins or leaves its silhouette). That segment lies in the
@@ -1168,7 +1170,7 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
       for (size_t b = 0; b < occ.size(); ++b)
         if (unit(a) != unit(b) && occ[a].size() >= 3 && occ[b].size() >= 3)
           for (const Vec3& w : occ[a]) {
-            if (pool[b].cull && pool[b].inner.dot(w) > pool[b].inner_offset + eps) continue;
+            if (pool[b].cull && pool[b].inner.dot(w) > pool[b].inner_offset + on_face) continue;
             if (!cone || std::abs(ns.dot(w) - os) <= eps) {
               project(w, occ[b], false);
               continue;
