@@ -504,13 +504,13 @@ TEST(ExactVisibilityNumerics, EntriesMeetTheToleranceWhereEstimatesWereOptimisti
 // window_room.obj: a triangle of the wall beside the window (face 2) whose corner (4.4, 0, 2.6) is a corner of the
 // cupboard above it (a closed convex box standing against that wall), to the side wall 0.6 m away (face 13). Seen
 // from the side wall, the box's bottom hides the triangle only from points above its plane z = 2.6, through the 5 cm
-// gap between box and wall: the critical line there comes from the triangle's corner and the box's far bottom edge.
-// That corner lies in the bottom's plane, and the lines were left out for target corners on a solid's face plane (as
-// if they saw it from behind): integrated from the side wall (the larger patch), an element reaching 2.75 mm above
-// the line had samples that all saw no shadow, F 1.8e-6 high with an estimate of 6.6e-9 (and 5.8e-7 for the smaller
-// triangle beside it). The assembly integrates from the smaller patch, so this pair came out right by luck of the
-// orientation; either orientation must. Reference: nested adaptive Gauss-Kronrod over the side wall (1e-11), which
-// shares no outer rule or critical line with the exact path. Tolerance: 1e-8 on H each way, 2e-8 between them.
+// gap between the box and the side wall: the critical line there comes from the triangle's corner and the box's far
+// bottom edge. That corner lies in the bottom's plane, and the lines were left out for target corners on a solid's
+// face plane (as if they saw it from behind): integrated from the side wall (the larger patch), an element reaching
+// 2.75 mm above the line had samples that all saw no shadow, F 1.8e-6 high with an estimate of 6.6e-9 (and 5.8e-7 for
+// the smaller triangle beside it). The assembly integrates from the smaller patch, so this pair came out right by luck
+// of the orientation; either orientation must. Reference: nested adaptive Gauss-Kronrod over the side wall (1e-11),
+// which shares no outer rule or critical line with the exact path. Tolerance: 1e-8 on H each way, 2e-8 between them.
 TEST(ExactVisibilityNumerics, SameEntryFromEitherPatchWhereATargetCornerLiesOnASolidsFace) {
   const mesh::Scene scene =
       mesh::prepare_and_build(io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/window_room.obj"), {}, {});
