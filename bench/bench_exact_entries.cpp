@@ -81,8 +81,8 @@ int main(int argc, char** argv) {
       std::vector<Poly> occ;
       for (int q : near_of(s, t)) occ.emplace_back(g.polygon(q).begin(), g.polygon(q).end());
       const double vis = fftest::pieces_visible(Ps, g.normal[s], Pt, occ), all = fftest::pieces_visible(Ps, g.normal[s], Pt, {});
-      std::printf("patches %d -> %d: F unoccluded %.10e, visible %.10e, hidden %.10e (%zu occluders near)\n", s, t, all,
-                  vis, all - vis, occ.size());
+      std::printf("patches %d -> %d: F unoccluded %.10e, visible %.10e, hidden %.10e (%zu occluders near); A_s H %.10e\n",
+                  s, t, all, vis, all - vis, occ.size(), g.area[s] * (all - vis));
     }
     return 0;
   }
