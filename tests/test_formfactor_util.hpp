@@ -5,6 +5,7 @@
 #include <cmath>
 #include <vector>
 
+#include "../formfactor/src/internal.hpp"
 #include "lambert/formfactor/kernel.hpp"
 #include "lambert/mesh/geometry.hpp"
 
@@ -215,20 +216,13 @@ inline double pieces_visible(const Poly& source, const Vec3& n, const Poly& targ
 // until the two rules agree within its share of tol (or at depth 30).
 template <class F>
 double gauss_kronrod(const F& f, double a, double b, double tol, int depth = 0) {
-  static constexpr double xk[8] = {0.991455371120812639, 0.949107912342758525, 0.864864423359769073,
-                                   0.741531185599394440, 0.586087235467691130, 0.405845151377397167,
-                                   0.207784955007898468, 0.0};
-  static constexpr double wk[8] = {0.022935322010529225, 0.063092092629978553, 0.104790010322250184,
-                                   0.140653259715525919, 0.169004726639267903, 0.190350578064785410,
-                                   0.204432940075298892, 0.209482141084727828};
-  static constexpr double wg[4] = {0.129484966168869693, 0.279705391489276668, 0.381830050505118945,
-                                   0.417959183673469388};
+  using formfactor::detail::kWg, formfactor::detail::kWgk, formfactor::detail::kXgk;  // the contour integral's table
   const double c = 0.5 * (a + b), h = 0.5 * (b - a), fc = f(c);
-  double K = wk[7] * fc, G = wg[3] * fc;
+  double K = kWgk[7] * fc, G = kWg[3] * fc;
   for (int k = 0; k < 7; ++k) {
-    const double f1 = f(c - h * xk[k]), f2 = f(c + h * xk[k]);
-    K += wk[k] * (f1 + f2);
-    if (k % 2 == 1) G += wg[k / 2] * (f1 + f2);
+    const double f1 = f(c - h * kXgk[k]), f2 = f(c + h * kXgk[k]);
+    K += kWgk[k] * (f1 + f2);
+    if (k % 2 == 1) G += kWg[k / 2] * (f1 + f2);
   }
   K *= h, G *= h;
   if (std::abs(K - G) <= tol || depth >= 30) return K;
