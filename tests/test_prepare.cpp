@@ -601,6 +601,50 @@ TEST(PrepareInvariance, TurnedModelIsImprintedAsTheUprightOne) {
   EXPECT_NEAR(area(moved), area(upright), 1e-12 * area(upright));
 }
 
+// The floor and the two blocks of CornellBox-Original.obj (../shared/models; its corners), moved by
+// GIS-sized offsets: the same faces, corner for corner. The floor left around the footprints is a region with holes,
+// emitted as its constrained Delaunay triangles, and one quadrilateral between the two footprints (corners
+// (-0.05, 0.57), (0.13, 0), (0.04, -0.09), (-0.53, 0.09)) is cocircular to 4e-17: which diagonal it took was decided by
+// the rounding of the moved corners (the model moved by (1e6, 2e6, 0) m got other floor patches, so other ray samples,
+// and entries up to 2.8e-3 apart). Near-ties are now decided by the corners' indices, and the triangles of a region
+// are listed in an order of their own (the triangulation's order also changed with the offset). Tolerance: corners
+// within 1e-9 m of the unmoved ones once the offset is taken off (the offsets' rounding is 4.7e-10 m at 4e6 m); the
+// corner lists exactly.
+TEST(PrepareInvariance, MovedModelIsTriangulatedAsTheOneAtTheOrigin) {
+  auto box = [](std::array<double, 8> xz, double h) {  // four floor corners (x, z) of a block of height h
+    shapes::Polygons p;
+    std::array<Vec3, 4> b, t;
+    for (int k = 0; k < 4; ++k) b[k] = Vec3(xz[2 * k], 0, xz[2 * k + 1]), t[k] = b[k] + Vec3(0, h, 0);
+    p.push_back({t[0], t[1], t[2], t[3]});
+    for (int k = 0; k < 4; ++k) p.push_back({b[(k + 1) % 4], t[(k + 1) % 4], t[k], b[k]});
+    p.push_back({b[3], b[2], b[1], b[0]});
+    return p;
+  };
+  shapes::Polygons polys{{Vec3(-1.01, 0, 0.99), Vec3(1.00, 0, 0.99), Vec3(1.00, 0, -1.04), Vec3(-0.99, 0, -1.04)}};
+  for (const auto& p : box({0.53, 0.75, 0.70, 0.17, 0.13, 0.00, -0.05, 0.57}, 0.60)) polys.push_back(p);
+  for (const auto& p : box({-0.53, 0.09, 0.04, -0.09, -0.14, -0.67, -0.71, -0.49}, 1.20)) polys.push_back(p);
+  Report r0;
+  const PolygonSoup at_origin = prepare(soup_from(polys), {}, r0);
+  ASSERT_EQ(count(r0, "faces_imprinted"), 1) << "the floor, along both footprints";
+  const Vec3 offsets[] = {{1e6, 0, 2e6},       {2e6, 0, 1e6},  {-1.37e6, 0, 3.1e6}, {5.5e5, 0, 4.1e6},
+                          {3.3e6, 7.0, -2e6}, {1e5, 0, 1e5}, {-4e6, 0, -4e6},     {123456.789, 0, 987654.321}};
+  for (const Vec3& offset : offsets) {
+    shapes::Polygons moved = polys;
+    for (auto& poly : moved)
+      for (Vec3& p : poly) p += offset;
+    Report r;
+    const PolygonSoup far = prepare(soup_from(moved), {}, r);
+    EXPECT_EQ(r.counts, r0.counts) << "offset " << offset.transpose();
+    ASSERT_EQ(far.faces.size(), at_origin.faces.size()) << "offset " << offset.transpose();
+    ASSERT_EQ(far.positions.size(), at_origin.positions.size()) << "offset " << offset.transpose();
+    for (size_t i = 0; i < far.positions.size(); ++i)
+      ASSERT_LE((far.positions[i] - offset - at_origin.positions[i]).norm(), 1e-9)
+          << "offset " << offset.transpose() << ", position " << i << ": " << at_origin.positions[i].transpose();
+    for (size_t k = 0; k < far.faces.size(); ++k)
+      EXPECT_EQ(far.faces[k].vertices, at_origin.faces[k].vertices) << "offset " << offset.transpose() << ", face " << k;
+  }
+}
+
 // ---- repeatability ------------------------------------------------------------------------------------
 
 // The same input prepared twice in one process gives the same soup, bit for bit. The pieces of a split face were

@@ -27,6 +27,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "cdt_ties.hpp"
 #include "prepare_internal.hpp"
 #include "soup_rays.hpp"
 #include "tri_tri.hpp"
@@ -387,6 +388,8 @@ std::vector<std::vector<int>> split_face(const PolygonSoup& s, int k, const Face
       const auto& p = v->point();
       v->info().index = index.find_or_add(f.poly[0] + p.x() * f.u + p.y() * f.v);
     }
+  // Regions with holes are emitted as their triangles: near-cocircular quadrilaterals decided as exact ties (cdt_ties.hpp).
+  settle_cocircular_ties(cdt);
   // Triangles inside the face, grouped into regions bounded by constraints. Regions are numbered in the
   // triangulation's order (`inside`), not in the map's: its keys are handles, ordered by address, and the pieces (their
   // order, their first corner) then depended on where the allocator had put the faces: the first mesh::prepare of a
@@ -480,12 +483,19 @@ std::vector<std::vector<int>> split_face(const PolygonSoup& s, int k, const Face
       else if (clean.size() >= 3) pieces.push_back(clean);
     }
     if (!simple) {  // a region with holes (or pinched): its triangles
+      std::vector<std::array<int, 3>> tris;
       for (const auto& fh : regions[r]) {
         const int a = fh->vertex(0)->info().index, b = fh->vertex(1)->info().index, c = fh->vertex(2)->info().index;
-        if (a != b && b != c && a != c) pieces.push_back({a, b, c});
+        if (a != b && b != c && a != c) tris.push_back({a, b, c});
       }
+      // In an order of their own (the triangulation's faces and their first corners depend on its history).
+      for (const std::array<int, 3>& t : canonical_triangles(std::move(tris))) pieces.push_back({t[0], t[1], t[2]});
     }
   }
+  // Pieces in an order of their own: regions are found in the triangulation's face order, which depends on the
+  // corners' rounding (the same floor moved by 1e6 m listed its regions otherwise). Each piece starts at its smallest
+  // corner (loops from the smallest key of `next`, triangles rotated), so sorting them fixes the order.
+  std::sort(pieces.begin(), pieces.end());
   return pieces;
 }
 

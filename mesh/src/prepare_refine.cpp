@@ -16,6 +16,7 @@
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
+#include "cdt_ties.hpp"
 #include "prepare_internal.hpp"
 #include "triangulate_internal.hpp"
 #include "union_find.hpp"
@@ -495,11 +496,13 @@ class Refiner {
       const Eigen::Vector2d& at = i < nb ? q[i] : lattice[size_t(i - nb)];
       if (w->point() != K::Point_2(at.x(), at.y())) return false;
     }
+    settle_cocircular_ties(cdt);  // near-ties decided as exact ties (cdt_ties.hpp)
     // Inside = odd number of constraints crossed from the infinite face.
     mark_nesting_levels(cdt);
     std::vector<std::array<int, 3>> tris;
     for (auto f : cdt.finite_face_handles())
       if (f->info() % 2 == 1) tris.push_back({f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()});
+    tris = canonical_triangles(std::move(tris));
     for (const auto& p : lattice) pts.push_back(o + p.x() * u + p.y() * v);
     Bisection bisect(pts, tris);
     const double area = 0.5 * nn.norm();

@@ -8,6 +8,7 @@
 
 #include <deque>
 
+#include "cdt_ties.hpp"
 #include "triangulate_internal.hpp"
 
 namespace lambert::mesh::detail {
@@ -45,6 +46,7 @@ std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2
     }
     for (int k = 0; k < m; ++k) cdt.insert_constraint(vh[k], vh[(k + 1) % m]);
     // Inside = odd nesting level across constrained edges, counted from the infinite face.
+    settle_cocircular_ties(cdt);  // near-ties decided as exact ties (cdt_ties.hpp)
     mark_nesting_levels(cdt);
     std::vector<std::array<int, 3>> tris;
     tris.reserve(size_t(m - 2));
@@ -57,7 +59,7 @@ std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2
     }
     // A simple polygon with m corners and no inner points has exactly m - 2 triangles.
     if (static_cast<int>(tris.size()) != m - 2) return {};
-    return tris;
+    return canonical_triangles(std::move(tris));
   } catch (const CDT::Intersection_of_constraints_exception&) {
     return {};
   }
