@@ -2399,7 +2399,7 @@ PairResult visible_polygon_to_polygon(std::span<const Vec3> Pi, std::span<const 
       detail::set_inner(occ[k], g.normal[k], centre[size_t(id[k])], 1e-9 * scale);
     }
   }
-  const bool swap = Aj < Ai;  // integrate from the smaller patch, as polygon_to_polygon does
+  const bool swap = detail::source_is_j(Ai, Aj);  // integrate from the smaller patch, as polygon_to_polygon does
   const auto s = swap ? Pj : Pi, t = swap ? Pi : Pj;
   const Vec3 &ns = swap ? nj : ni, &nt = swap ? ni : nj;
   const double As = swap ? Aj : Ai, At = swap ? Ai : Aj;

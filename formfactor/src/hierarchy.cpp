@@ -834,7 +834,7 @@ class Refiner {
   // The exact entry of one patch pair (as the dense assembly computes it) and its visibility. The one
   // visibility call for patch pairs.
   void leaf_pair(int i, int j, Local& loc, const std::vector<int>* from) {
-    const bool swap = g_.area[j] < g_.area[i];
+    const bool swap = detail::source_is_j(g_.area[i], g_.area[j]);
     const int s = swap ? j : i, t = swap ? i : j;
     const detail::PairEval e = detail::pair_scalar(d_.P, psoa_, s, t, etol_);
     if (e.method == detail::kCulled || !(e.F > 0)) {

@@ -189,8 +189,12 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
     if (poly.size() == 3) {
       P.kind[p] = 0;
     } else if (poly.size() == 4 && convex_quad(poly, g.normal[p])) {
+      // A parallelogram to 1e-9 of its size: the corners of one given in decimals (a CAD box) are that to the
+      // rounding of where the model sits (1.2e-10 m at 1e6 m; 1e-12 of a 0.3 m block top was not, and the block top
+      // of CornellBox-Original.obj moved by (1e6, 2e6, 0) m was sampled by triangles instead of its bilinear map:
+      // other ray samples). The odd moments the tiers then take as zero are 1e-9 of the patch's.
       const double sym = (poly[0] + poly[2] - poly[1] - poly[3]).norm();
-      P.kind[p] = sym <= 1e-12 * std::max(r, 1e-300) ? 1 : 2;
+      P.kind[p] = sym <= 1e-9 * std::max(r, 1e-300) ? 1 : 2;
     } else {
       P.kind[p] = 3;
     }
@@ -368,7 +372,7 @@ PairResult polygon_to_polygon(std::span<const Vec3> Pi, std::span<const Vec3> Pj
       {std::vector<Vec3>(Pi.begin(), Pi.end()), std::vector<Vec3>(Pj.begin(), Pj.end())});
   const detail::PatchData P = detail::prepare(g);
   // Integrate from the smaller patch: F of the other direction then inherits an error scaled by A_s/A_t <= 1.
-  const bool swap = g.area[1] < g.area[0];
+  const bool swap = detail::source_is_j(g.area[0], g.area[1]);
   const int s = swap ? 1 : 0, t = 1 - s;
   const detail::PairEval e = detail::pair_scalar(P, s, t, tolerance);
   PairResult r;

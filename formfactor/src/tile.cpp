@@ -35,7 +35,7 @@ void Assembler::fixed_rule(int i0, int i1, int j0, int j1, bool diagonal, Counte
         ++c.reused;
         continue;
       }
-      const bool swap = P.area[j] < P.area[i];
+      const bool swap = source_is_j(P.area[i], P.area[j]);
       const int src = swap ? j : i, tgt = swap ? i : j;
       double f = 0;
       if (o_.rule == Rule::Point) {
@@ -201,7 +201,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
   // 3. Scalar path: near, straddling or general polygons; integrated from the smaller patch.
   for (size_t k = 0; k < b.ss.size(); ++k) {
     const int i = b.ss[k], j = b.st[k];
-    const bool swap = area[j] < area[i];
+    const bool swap = source_is_j(area[i], area[j]);
     const PairEval e = pair_scalar(pr.P, swap ? j : i, swap ? i : j, tol);
     ++c.by_method[e.method];
     if (e.method == kCulled) ++c.culled;
@@ -231,7 +231,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
       const int i = i0 + cell / kBlock, j = j0 + cell % kBlock;
       if (j >= j1 || (bi == bj && j <= i)) continue;
       const std::uint64_t key = mix((tile_id * 16 + std::uint64_t(m)) * kPerTile + std::uint64_t(seen[m]++));
-      const bool swap = area[j] < area[i];
+      const bool swap = source_is_j(area[i], area[j]);
       const int src = swap ? j : i, tgt = swap ? i : j;
       RecipCandidate rc{key, src, tgt, m, F(i, j) * (swap ? area[i] / area[j] : 1.0),
                         b.err[slot(i, j)] * (swap ? area[i] / area[j] : 1.0)};
@@ -403,7 +403,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                 }
               }
               if (!o_.cull_occlusion || tree_.may_block_from(sh, i, j, walk, &b.blocker)) {
-                const bool swap = area[j] < area[i];
+                const bool swap = source_is_j(area[i], area[j]);
                 const int src = swap ? j : i, tgt = swap ? i : j;
                 const double share = std::max(F(i, j), F(i, j) * area[i] / area[j]);
                 const bool exact = o_.visibility_method == VisibilityMethod::Exact ||

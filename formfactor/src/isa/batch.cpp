@@ -204,7 +204,7 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, dou
     }
     const vl straddle = (smin < -eps) | (tmin < -eps);
     const vd Aj = load(s.area + j), rj = load(s.radius + j);
-    const vl swap = Aj < Ai;  // the error model integrates from the smaller patch
+    const vl swap = Aj < splat(Ai * kSmallerBy);  // the error model integrates from the smaller patch (source_is_j)
     const vd rs = sel(swap, rj, splat(ri)), rt = sel(swap, splat(ri), rj), At = sel(swap, splat(Ai), Aj);
     const vd symj = load(s.sym + j);
     const vl ssym = sel(swap, symj, splat(symi)) > 0.5, tsym = sel(swap, splat(symi), symj) > 0.5;
