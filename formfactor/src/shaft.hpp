@@ -29,6 +29,7 @@ struct Shaft {
   int planes = 0;
   std::array<Vec3, 12> n;  // outward normals: the shaft is n.p <= d for every plane
   std::array<double, 12> d;
+  std::array<double, 12> len;  // |n|: a plane's margin is eps * len
   // The same planes for the box test: the two axes u < v of each normal's nonzero components (the third is 0) and
   // which corner of a box is lowest along it per axis (0: lo, 1: hi).
   std::array<std::uint8_t, 12> u, v, su, sv;

@@ -25,11 +25,12 @@ constexpr int kTierM[kTiers] = {0, 1, 2, 3, 4, 6, 8};  // Gauss points per direc
 // at rounding level, 7x and 70x the worst measurable ratio.
 constexpr double kTierConstant[kTiers][2] = {{0.8, 1.3}, {0.6, 2.5}, {0.4, 0.5},   {0.07, 0.09},
                                              {0.008, 0.012}, {1e-4, 1e-4}, {1e-6, 1e-6}};
-// The source is the smaller patch, j only if smaller than i by more than 1e-9 of i's area: areas equal but for
+// The source is the smaller patch, j only if smaller than i by more than 1e-6 of i's area: areas equal but for
 // rounding (a regular grid's, a floor's and a ceiling's matching patches) keep i. Which one rounded smaller changed
 // with where the model sat (examples/room.obj moved by 1e6 m swapped the pair's source, so its ray samples, and an
-// entry moved by 1.4e-3). Written with `<` and `*` only, for doubles and SIMD lanes alike.
-constexpr double kSmallerBy = 1 - 1e-9;
+// entry moved by 1.4e-3; 1e-9 was not enough for a file written with 10 decimals there, 1e-10 m on a 0.23 m patch).
+// Either patch is as good a source then. Written with `<` and `*` only, for doubles and SIMD lanes alike.
+constexpr double kSmallerBy = 1 - 1e-6;
 template <class V>
 inline auto source_is_j(V Ai, V Aj) {
   return Aj < Ai * kSmallerBy;

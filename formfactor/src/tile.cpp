@@ -260,6 +260,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
       Shaft ts = make_shaft(block_box(a0, a1), block_box(c0, c1));
       ts.ni = ts.nj = Vec3::Zero();
       ts.oi = ts.oj = -INFINITY;
+      ts.eps = pr.P.scene_eps;
       blocker = -1;
       return !tree_.may_block(ts, -1, -1, &blocker);
     };
@@ -312,6 +313,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
         Shaft ts = make_shaft(ba, bc);
         ts.ni = ts.nj = Vec3::Zero();
         ts.oi = ts.oj = -INFINITY;
+        ts.eps = pr.P.scene_eps;
         b.cand.clear();
         tree_.collect(ts, -1, -1, b.cand);
         proof = hidden_by_plane(b.corners_a, b.corners_b, g_, plane_of_, b.cand, eps, *b.sep, touching_ok);
