@@ -510,6 +510,36 @@ TEST(FormFactorReuse, ReusedAssemblyEqualsFreshAssembly) {
   EXPECT_THROW(assemble(gf, o), InternalError) << "a repeated reuse index is a caller bug, not bad input";
 }
 
+// Reused pairs keep their rows' uncertainty: with every pair copied from the previous assembly, each row's
+// visibility sigma and integration bound are the previous ones (Reuse::previous_row_sigma, previous_row_bound). They
+// were 0 for copied pairs, so a refined scene's rows had no sigma for their copied ray estimates and the row-sum
+// check failed right rows (examples/room.obj, `--adaptive-budget 3000 --adaptive-rounds 1`: 1.32x). Tolerance:
+// 1e-12 relative (a square root of a square).
+TEST(FormFactorReuse, CopiedRowsKeepTheirSigmaAndBound) {
+  const auto g = geometry(shapes::room_with_block(3, 1, Vec3(0.3, 0.3, 0.3), Vec3(0.6, 0.6, 0.6)));
+  Stats first;
+  const DenseMatrixOperator F = assemble(g, {}, &first);
+  ASSERT_GT(first.pairs_ray_tested, 0) << "the block must leave pairs to the rays";
+  std::vector<int> all(size_t(g.size()));
+  for (int p = 0; p < g.size(); ++p) all[size_t(p)] = p;
+  Reuse reuse{&F, all, first.row_visibility_sigma, first.row_error_bound};
+  Options o;
+  o.reuse = &reuse;
+  Stats again;
+  assemble(g, o, &again);
+  ASSERT_EQ(again.pairs_reused, (long long)g.size() * (g.size() - 1) / 2);
+  int with_sigma = 0;
+  for (int p = 0; p < g.size(); ++p) {
+    EXPECT_NEAR(again.row_visibility_sigma[size_t(p)], first.row_visibility_sigma[size_t(p)],
+                1e-12 * first.row_visibility_sigma[size_t(p)])
+        << "row " << p;
+    EXPECT_NEAR(again.row_error_bound[size_t(p)], first.row_error_bound[size_t(p)], 1e-12 * first.row_error_bound[size_t(p)])
+        << "row " << p;
+    with_sigma += first.row_visibility_sigma[size_t(p)] > 0;
+  }
+  EXPECT_GT(with_sigma, 0);
+}
+
 // The room with a floating block (8 x 8 quads per wall, 3 x 3 per block face), as built and turned about (1, 2, 3)
 // by 0.7 rad: as many pairs proven unoccluded by the axis-aligned shafts, because the assembly works on a copy
 // turned back onto the axes (detail::moved_to_origin), and the same form factors with exact visibility (the kernel

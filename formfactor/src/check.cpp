@@ -9,7 +9,6 @@
 
 #include <algorithm>
 #include <array>
-#include <map>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -21,16 +20,32 @@
 namespace lambert::formfactor {
 namespace {
 
-struct IgnoreOne {
+// The ray's context: the patch it leaves (ignored), and the nearest back side it passed. Back sides are not hits
+// here: a ray meets the two sides of a two-sided face at the same distance, and Embree may report either. The
+// patches of the two sides need not be twins (refinement splits one side and not the other; hidden fragments are
+// removed from one side only), so the first hit's side is decided by distances: a front side within `coincident`
+// of the nearest back side is what the ray meets.
+struct FirstHitContext {
   RTCIntersectContext ctx;
   const int* tri_patch;
+  const Vec3* normal;
   int self;
+  Vec3 d;
+  float nearest_back = INFINITY;
 };
 
-void ignore_self(const RTCFilterFunctionNArguments* args) {
-  const auto* c = reinterpret_cast<const IgnoreOne*>(args->context);
-  for (unsigned k = 0; k < args->N; ++k)
-    if (args->valid[k] != 0 && c->tri_patch[RTCHitN_primID(args->hit, args->N, k)] == c->self) args->valid[k] = 0;
+void front_sides_only(const RTCFilterFunctionNArguments* args) {
+  auto* c = reinterpret_cast<FirstHitContext*>(args->context);
+  for (unsigned k = 0; k < args->N; ++k) {
+    if (args->valid[k] == 0) continue;
+    const int p = c->tri_patch[RTCHitN_primID(args->hit, args->N, k)];
+    if (p == c->self) {
+      args->valid[k] = 0;
+    } else if (!(c->normal[p].dot(c->d) < 0)) {
+      c->nearest_back = std::min(c->nearest_back, RTCRayN_tfar(args->ray, args->N, k));
+      args->valid[k] = 0;
+    }
+  }
 }
 
 // Embree scene of every patch's triangles, recentred on the scene's bounding-box centre (single precision).
@@ -50,21 +65,6 @@ class FirstHit {
     rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION | RTC_SCENE_FLAG_ROBUST);
     detail::add_patch_triangles(device_, scene_, g, {}, centre_, tri_patch_);
     rtcCommitScene(scene_);
-    // Coincident patches facing opposite ways (the two sides of a two-sided face: the same corners in reverse
-    // order): a ray meets both at the same distance and Embree may report either; the side facing the ray is
-    // the one hit.
-    twin_.assign(size_t(g.size()), -1);
-    std::map<std::vector<std::array<double, 3>>, std::vector<int>> by_corners;
-    for (int p = 0; p < g.size(); ++p) {
-      std::vector<std::array<double, 3>> key;
-      for (const Vec3& v : g.polygon(p)) key.push_back({v.x(), v.y(), v.z()});
-      std::sort(key.begin(), key.end());
-      by_corners[key].push_back(p);
-    }
-    for (const auto& [key, ps] : by_corners)
-      for (int a : ps)
-        for (int b : ps)
-          if (a != b && g.normal[a].dot(g.normal[b]) < 0 && twin_[size_t(a)] < 0) twin_[size_t(a)] = b;
   }
   ~FirstHit() {
     rtcReleaseScene(scene_);
@@ -74,13 +74,16 @@ class FirstHit {
   FirstHit& operator=(const FirstHit&) = delete;
 
   // Patch whose front side is hit first by the ray from o along d (unit), ignoring patch `self`; -1 if the ray
-  // escapes or first meets a back side.
+  // escapes or first meets a back side (by more than 1e-5 of the scene before any front side: two sides of one
+  // face are met at the same distance to float precision).
   int front_hit(const mesh::PatchGeometry& g, const Vec3& o, const Vec3& d, int self) const {
-    IgnoreOne c;
+    FirstHitContext c;
     rtcInitIntersectContext(&c.ctx);
-    c.ctx.filter = &ignore_self;
+    c.ctx.filter = &front_sides_only;
     c.tri_patch = tri_patch_.data();
+    c.normal = g.normal.data();
     c.self = self;
+    c.d = d;
     RTCRayHit rh{};
     const Vec3 oo = o - centre_ + 1e-6 * size_ * g.normal[self];
     rh.ray.org_x = float(oo.x());
@@ -95,17 +98,14 @@ class FirstHit {
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &c.ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
-    const int p = tri_patch_[rh.hit.primID];
-    if (g.normal[p].dot(d) < 0) return p;
-    const int t = twin_[size_t(p)];
-    return t >= 0 && t != self && g.normal[t].dot(d) < 0 ? t : -1;
+    if (double(c.nearest_back) < double(rh.ray.tfar) - 1e-5 * size_) return -1;
+    return tri_patch_[rh.hit.primID];
   }
 
  private:
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
   std::vector<int> tri_patch_;
-  std::vector<int> twin_;  // per patch: the coincident patch facing the other way, or -1
   Vec3 centre_;
   double size_ = 1;
 };

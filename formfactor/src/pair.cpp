@@ -189,12 +189,14 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
     if (poly.size() == 3) {
       P.kind[p] = 0;
     } else if (poly.size() == 4 && convex_quad(poly, g.normal[p])) {
-      // A parallelogram to 1e-9 of its size: the corners of one given in decimals (a CAD box) are that to the
-      // rounding of where the model sits (1.2e-10 m at 1e6 m; 1e-12 of a 0.3 m block top was not, and the block top
-      // of CornellBox-Original.obj moved by (1e6, 2e6, 0) m was sampled by triangles instead of its bilinear map:
-      // other ray samples). The odd moments the tiers then take as zero are 1e-9 of the patch's.
+      // A parallelogram to 1e-8 of its size: the corners of one given in decimals (a CAD box), or made by
+      // refinement's midpoints, are that to the rounding of where the model sits (1.2e-10 m at 1e6 m; 1e-12 of a
+      // 0.3 m block top was not, and the block top of CornellBox-Original.obj moved by (1e6, 2e6, 0) m was sampled
+      // by triangles instead of its bilinear map: other ray samples; 1e-9 was not for the room's 0.15 m children
+      // after a round of refinement there). The third moments the tiers then take as zero are 1e-8 of the patch's:
+      // below 1.3e-9 F where a tier applies (r / d <= 0.5).
       const double sym = (poly[0] + poly[2] - poly[1] - poly[3]).norm();
-      P.kind[p] = sym <= 1e-9 * std::max(r, 1e-300) ? 1 : 2;
+      P.kind[p] = sym <= 1e-8 * std::max(r, 1e-300) ? 1 : 2;
     } else {
       P.kind[p] = 3;
     }

@@ -73,6 +73,19 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
     st_.entries_roundoff += c.roundoff;
     for (int m = 0; m < kMethodCount; ++m) by[m] += c.by_method[m];
   }
+  // Rows of reused patches: their copied pairs' sigma and bound, bounded by the previous row's (Reuse).
+  bool carried = false;
+  if (const Reuse* r = o_.reuse; r && st_.pairs_reused > 0 && !old_.empty()) {
+    const bool sig = !r->previous_row_sigma.empty(), bnd = !r->previous_row_bound.empty();
+    carried = sig && bnd;
+    for (int i = 0; i < n; ++i) {
+      const int q = old_[size_t(i)];
+      if (q < 0) continue;
+      if (sig && size_t(q) < r->previous_row_sigma.size())
+        st_.row_visibility_sigma[i] += r->previous_row_sigma[size_t(q)] * r->previous_row_sigma[size_t(q)];
+      if (bnd && size_t(q) < r->previous_row_bound.size()) st_.row_error_bound[i] += r->previous_row_bound[size_t(q)];
+    }
+  }
   for (int m = 0; m < kMethodCount; ++m)
     if (by[m]) st_.pairs_by_method[kMethodNames[m]] = by[m];
   if (fixed) st_.pairs_by_method[to_string(o_.rule, o_.order)] = fixed;
@@ -92,8 +105,8 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
     for (double r : rows) sum += r;
     st_.row_sum_mean = sum / n;
   }
-  // (Not with reused pairs, whose error bounds are not carried over.)
-  if (o_.rule == Rule::Adaptive && o_.visibility && st_.pairs_reused == 0)
+  // (With reused pairs only if their rows' bounds were carried over.)
+  if (o_.rule == Rule::Adaptive && o_.visibility && (st_.pairs_reused == 0 || carried))
     st_.rows_above_one = find_rows_above_one(rows, st_.row_error_bound, st_.row_visibility_sigma);
   // Wall-time share of visibility inside "form_factors" (integration and visibility interleave per tile).
   const double per_thread_second = tile_seconds > 0 ? st_.seconds["form_factors"] / tile_seconds : 0.0;

@@ -61,6 +61,7 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
   formfactor::DenseMatrixOperator F_old;  // previous round's matrix
   mesh::PatchGeometry g_old;
   std::vector<int> kept_from;             // per face of `soup`: its face in the previous round, -1 if new
+  std::vector<double> sigma_old, bound_old;  // the previous round's row visibility sigma and integration bound
   for (int round = 0;; ++round) {
     mesh::Scene scene = mesh::build_scene(soup);
     if (scene.patches() != static_cast<int>(soup.faces.size())) {
@@ -92,6 +93,8 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
         const auto a = scene.geometry.polygon(p), b = g_old.polygon(q);
         if (a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin())) reuse.previous_index[p] = q;
       }
+      reuse.previous_row_sigma = sigma_old;
+      reuse.previous_row_bound = bound_old;
       ffo.reuse = &reuse;
     }
     auto t0 = std::chrono::steady_clock::now();
@@ -211,6 +214,8 @@ AdaptiveResult solve_adaptive(const mesh::PolygonSoup& input, const AdaptiveOpti
     if (options.reuse) {
       F_old = std::move(F);
       g_old = scene.geometry;
+      sigma_old = result.rounds.back().ff.row_visibility_sigma;
+      bound_old = result.rounds.back().ff.row_error_bound;
     }
     soup = std::move(next);
   }

@@ -69,6 +69,11 @@ struct Reuse {
   // previous geometry, or -1 if new. Pairs of two reused patches are copied from `previous`, visibility
   // included: the caller guarantees that the rest of the scene (the occluders) is unchanged.
   std::vector<int> previous_index;
+  // Per patch of the previous geometry: its row's visibility standard error and integration bound as that assembly
+  // reported them (Stats::row_visibility_sigma, row_error_bound), or empty. A reused patch's row adds them as a
+  // bound on what its copied pairs carry (they are part of that row): without them a refined scene's rows had no
+  // sigma for their copied ray estimates, and the row-sum check failed right rows.
+  std::vector<double> previous_row_sigma, previous_row_bound;
 };
 
 struct Options {
