@@ -15,6 +15,7 @@ struct SoA {
   const double* M[6];  // second moments / area: xx yy zz xy xz yz
   const double* fast;  // 1 for triangles and convex quads, 0 for polygons that need the scalar path
   const double* sym;   // 1 for parallelograms (centrally symmetric)
+  const double* rerr;  // the tiers' source radius (PatchData::rerr)
   double eps;          // plane classification tolerance
 };
 constexpr int kBatchPad = 16;

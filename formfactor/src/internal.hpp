@@ -97,6 +97,11 @@ struct PatchData {
   int n = 0;
   std::vector<Vec3> c, nrm;          // centroid, unit normal
   std::vector<double> area, radius;  // area, circumradius about the centroid
+  // The tiers' source radius (r = rerr / d): the circumradius, or sqrt(6 lambda) with lambda the largest principal
+  // second moment per area if larger. A square's is its circumradius; a strip L x W takes L / sqrt 2 (the square
+  // whose side is its length) instead of L / 2: the Gauss rules' error in the long direction is that square's, and
+  // with the circumradius a 60:1 strip's 6 x 6 estimate fell 6x short (ReciprocityHoldsForSlenderSources).
+  std::vector<double> rerr;
   std::vector<double> offset;        // n . c
   std::vector<double> eps;           // plane classification tolerance (relative to scene size)
   std::vector<std::array<double, 6>> M;  // second-moment tensor / area about c: xx yy zz xy xz yz

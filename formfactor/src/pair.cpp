@@ -2,6 +2,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 #include "internal.hpp"
 #include "lambert/formfactor/kernel.hpp"
 
@@ -149,6 +151,7 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
   P.nrm = g.normal;
   P.area = g.area;
   P.radius.resize(n);
+  P.rerr.resize(n);
   P.offset.resize(n);
   P.M.resize(n);
   P.kind.resize(n);
@@ -186,6 +189,13 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
     }
     for (double& v : M) v /= g.area[p];
     P.M[p] = M;
+    {
+      Eigen::Matrix3d S;
+      S << M[0], M[3], M[4], M[3], M[1], M[5], M[4], M[5], M[2];
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+      es.computeDirect(S, Eigen::EigenvaluesOnly);
+      P.rerr[p] = std::max(r, std::sqrt(6 * std::max(0.0, es.eigenvalues().maxCoeff())));
+    }
     if (poly.size() == 3) {
       P.kind[p] = 0;
     } else if (poly.size() == 4 && convex_quad(poly, g.normal[p])) {
@@ -300,7 +310,7 @@ PairEval pair_eval(const PatchData& P, const PointSoA* soa, int s, int t, double
   if (!straddle) {
     // The tier choice of tiers.hpp, as the SIMD classify: the first tier whose estimate is <= tol.
     const double D = (P.c[s] - P.c[t]).norm();
-    const TierInput<double> in = tier_input(D, P.radius[s], P.radius[t], P.area[t]);
+    const TierInput<double> in = tier_input(D, P.rerr[s], P.radius[t], P.area[t]);
     if (tier_eligible(D, P.radius[t], in)) {
       const bool sym = P.kind[s] == 1, symt = P.kind[t] == 1;
       double e[kTiers];

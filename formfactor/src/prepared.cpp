@@ -35,6 +35,7 @@ Prepared::Prepared(const mesh::PatchGeometry& g) : P(prepare(g)), points(P) {
   for (int k = 0; k < 6; ++k) soa.M[k] = fill([&](int p) { return P.M[p][k]; });
   soa.fast = fill([&](int p) { return P.kind[p] <= 2 ? 1.0 : 0.0; });
   soa.sym = fill([&](int p) { return P.kind[p] == 1 ? 1.0 : 0.0; });
+  soa.rerr = fill([&](int p) { return P.rerr[p]; });
   for (int m : {6, 8}) {  // larger rules are mapped per pair from cached reference rules (no locking)
     square_rule[m] = gauss_square(m);
     triangle_rule[m] = gauss_triangle(m);

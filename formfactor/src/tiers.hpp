@@ -8,7 +8,9 @@
 //   1 centroid + Hessian: analytic point-to-polygon from the source centroid plus the source's Hessian term
 //   2..6 m x m Gauss outer rule over the source (m = kTierM[t]) with the analytic inner integral
 // Model: estimate of |F_st error| = C S rp with S = A_t / (pi d^2), r = R_s / d, q = R_t / d, d the distance
-// from c_s to the bounding sphere of the target (R = circumradius about the centroid), rp = r^p with p the
+// from c_s to the bounding sphere of the target (R_t = circumradius about the centroid; R_s = the larger of the
+// source's circumradius and sqrt(6 lambda_max), lambda_max its largest principal second moment per area: a strip's
+// rules err like a square's with its length as side, PatchData::rerr), rp = r^p with p the
 // rule's order (4 for tiers 0/1, 2m for Gauss), one less for a source that is not centrally symmetric; tier 0
 // adds the target's term (q^4 or q^3) and both add r^2 q^2 (the Hessian is taken at one centroid only).
 // The constants C are fitted (kTierConstant below). Pairs with d <= 0 or r > kMaxAreaRatio take the

@@ -165,7 +165,7 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, dou
     qiy[c] = s.qy[c][i];
     qiz[c] = s.qz[c][i];
   }
-  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.radius[i];
+  const double cix = s.cx[i], ciy = s.cy[i], ciz = s.cz[i], Ai = s.area[i], ri = s.radius[i], rei = s.rerr[i];
   const double fi = s.fast[i], symi = s.sym[i];
   const Moments<vd> MI{splat(s.M[0][i]), splat(s.M[1][i]), splat(s.M[2][i]),
                        splat(s.M[3][i]), splat(s.M[4][i]), splat(s.M[5][i])};
@@ -203,9 +203,10 @@ int classify(const SoA& soa, int i, int j0, int j1, double tol, double* val, dou
       continue;
     }
     const vl straddle = (smin < -eps) | (tmin < -eps);
-    const vd Aj = load(s.area + j), rj = load(s.radius + j);
+    const vd Aj = load(s.area + j), rj = load(s.radius + j), rej = load(s.rerr + j);
     const vl swap = Aj < splat(Ai * kSmallerBy);  // the error model integrates from the smaller patch (source_is_j)
-    const vd rs = sel(swap, rj, splat(ri)), rt = sel(swap, splat(ri), rj), At = sel(swap, splat(Ai), Aj);
+    // The source's error radius (PatchData::rerr), the target's circumradius (its bounding sphere).
+    const vd rs = sel(swap, rej, splat(rei)), rt = sel(swap, splat(ri), rj), At = sel(swap, splat(Ai), Aj);
     const vd symj = load(s.sym + j);
     const vl ssym = sel(swap, symj, splat(symi)) > 0.5, tsym = sel(swap, splat(symi), symj) > 0.5;
     const vd cjx = load(s.cx + j), cjy = load(s.cy + j), cjz = load(s.cz + j);
