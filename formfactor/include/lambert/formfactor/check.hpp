@@ -4,7 +4,8 @@
 // sum_j F_ij (with visibility) is the fraction of the energy leaving patch i (uniformly over its area,
 // cosine-distributed over directions) that reaches the front side of some patch. check_row_sums estimates it
 // for a sample of patches by casting cosine-weighted rays from stratified points of each and counting the rays
-// whose first hit is a patch's front side, and compares it with the assembled row sum:
+// whose first hit is a patch's front side (a front side within 1e-5 of the scene of a back side counts: the two
+// sides of a two-sided face, split alike or not), and compares it with the assembled row sum:
 //   allowed_i = k_sigma * sqrt(sigma_ray_i^2 + sigma_vis_i^2) + bound_i + 1e-4 (ray set-up: origins offset by
 //   1e-6 of the scene size, single-precision rays),
 // sigma_ray_i = sqrt(max(p(1 - p), 1/n) / n) the binomial standard error of the fraction p over n rays (plain
