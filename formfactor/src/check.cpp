@@ -23,8 +23,8 @@ namespace {
 // The ray's context: the patch it leaves (ignored), and the nearest back side it passed. Back sides are not hits
 // here: a ray meets the two sides of a two-sided face at the same distance, and Embree may report either. The
 // patches of the two sides need not be twins (refinement splits one side and not the other; hidden fragments are
-// removed from one side only), so the first hit's side is decided by distances: a front side within `coincident`
-// of the nearest back side is what the ray meets.
+// removed from one side only), so the first hit's side is decided by distances: a front side within 1e-5 of the
+// scene of the nearest back side is what the ray meets (front_hit).
 struct FirstHitContext {
   RTCIntersectContext ctx;
   const int* tri_patch;
