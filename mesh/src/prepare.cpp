@@ -174,7 +174,10 @@ void weld(PolygonSoup& s, double tol, Report& report) {
     // Hash grid of cell tol: vertices within tol lie in the same or a neighbouring cell.
     struct Hash {
       size_t operator()(const std::array<std::int64_t, 3>& c) const {
-        return std::hash<std::int64_t>()(c[0] * 73856093 ^ c[1] * 19349663 ^ c[2] * 83492791);
+        // Unsigned: cell indices of a model 4e6 m from the origin at a 1e-5 m weld tolerance reach 4e11, and their
+        // signed products overflowed (undefined; UBSan, PrepareInvariance.MovedModelIsTriangulatedAsTheOneAtTheOrigin).
+        return std::hash<std::uint64_t>()(std::uint64_t(c[0]) * 73856093u ^ std::uint64_t(c[1]) * 19349663u ^
+                                          std::uint64_t(c[2]) * 83492791u);
       }
     };
     std::unordered_map<std::array<std::int64_t, 3>, std::vector<int>, Hash> grid;
