@@ -485,7 +485,7 @@ TEST(FormFactorReuse, ReusedAssemblyEqualsFreshAssembly) {
     Options o;
     o.visibility = visibility;
     const DenseMatrixOperator Fc = assemble(gc, o);
-    Reuse reuse{&Fc, previous};
+    Reuse reuse{&Fc, previous, {}, {}};
     Options ro = o;
     ro.reuse = &reuse;
     Stats st;
@@ -504,7 +504,7 @@ TEST(FormFactorReuse, ReusedAssemblyEqualsFreshAssembly) {
   std::vector<int> bad = previous;
   bad[0] = bad[1];
   const DenseMatrixOperator Fc = assemble(gc);
-  Reuse r{&Fc, bad};
+  Reuse r{&Fc, bad, {}, {}};
   Options o;
   o.reuse = &r;
   EXPECT_THROW(assemble(gf, o), InternalError) << "a repeated reuse index is a caller bug, not bad input";
