@@ -31,12 +31,9 @@ constexpr double kTierConstant[kTiers][2] = {{0.8, 1.3}, {0.6, 2.5}, {0.4, 0.5},
 // rounding (a regular grid's, a floor's and a ceiling's matching patches) keep i. Which one rounded smaller changed
 // with where the model sat (examples/room.obj moved by 1e6 m swapped the pair's source, so its ray samples, and an
 // entry moved by 1.4e-3; 1e-9 was not enough for a file written with 10 decimals there, 1e-10 m on a 0.23 m patch).
-// Either patch is as good a source then. Written with `<` and `*` only, for doubles and SIMD lanes alike.
+// Either patch is as good a source then. The SIMD tier choice (isa/batch.cpp) writes the same comparison.
 constexpr double kSmallerBy = 1 - 1e-6;
-template <class V>
-inline auto source_is_j(V Ai, V Aj) {
-  return Aj < Ai * kSmallerBy;
-}
+inline bool source_is_j(double Ai, double Aj) { return Aj < Ai * kSmallerBy; }
 constexpr double kMaxAreaRatio = 0.5;  // R_s / d above this: always the scalar path (contour)
 constexpr double kTierPi = 3.14159265358979323846;
 
