@@ -538,6 +538,9 @@ TEST(FormFactorReuse, CopiedRowsKeepTheirSigmaAndBound) {
     with_sigma += first.row_visibility_sigma[size_t(p)] > 0;
   }
   EXPECT_GT(with_sigma, 0);
+  Reuse short_rows{&F, all, std::vector<double>(size_t(g.size() - 1), 0.0), first.row_error_bound};
+  o.reuse = &short_rows;
+  EXPECT_THROW(assemble(g, o), InternalError) << "rows for another geometry are a caller bug";
 }
 
 // The room with a floating block (8 x 8 quads per wall, 3 x 3 per block face), as built and turned about (1, 2, 3)

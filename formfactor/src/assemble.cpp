@@ -50,6 +50,10 @@ void Assembler::check_options() {
                     "form factors: reuse index of patch " + std::to_string(p) + " is " + std::to_string(q) +
                         " (out of range or repeated; previous matrix has " + std::to_string(m) + " patches)");
     }
+    for (const auto* rows : {&r.previous_row_sigma, &r.previous_row_bound})
+      LAMBERT_CHECK(rows->empty() || rows->size() == size_t(m),
+                    "form factors: reuse's previous row sigma and bound need one value per previous patch (" +
+                        std::to_string(m) + ") or none, got " + std::to_string(rows->size()));
     old_ = r.previous_index;
   }
   if (o_.rays_per_pair < 1)

@@ -81,9 +81,8 @@ void Assembler::collect_stats(const std::vector<Counters*>& counters) {
     for (int i = 0; i < n; ++i) {
       const int q = old_[size_t(i)];
       if (q < 0) continue;
-      if (sig && size_t(q) < r->previous_row_sigma.size())
-        st_.row_visibility_sigma[i] += r->previous_row_sigma[size_t(q)] * r->previous_row_sigma[size_t(q)];
-      if (bnd && size_t(q) < r->previous_row_bound.size()) st_.row_error_bound[i] += r->previous_row_bound[size_t(q)];
+      if (sig) st_.row_visibility_sigma[i] += r->previous_row_sigma[size_t(q)] * r->previous_row_sigma[size_t(q)];
+      if (bnd) st_.row_error_bound[i] += r->previous_row_bound[size_t(q)];  // sizes checked in the constructor
     }
   }
   for (int m = 0; m < kMethodCount; ++m)
