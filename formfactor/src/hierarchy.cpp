@@ -82,13 +82,16 @@ struct TreeBuilder {
       nb.add(g.normal[perm[k]]);
     }
     const Vec3 ce = cb.hi - cb.lo, ne = (nb.hi - nb.lo) * (0.5 * ce.norm());
-    // The largest extent; extents within 1e-9 of it (relative) count as equal to it, and the first of them wins.
+    // The largest extent; extents within 1e-9 of it (relative) or within 2 eps_c (what two rounded values can move
+    // an extent: two 5 cm patches side by side diagonally in a moved model) count as equal to it, and the first of
+    // them wins.
     double best = 0;
     for (int k = 0; k < 3; ++k) best = std::max({best, ce[k], ne[k]});
+    const double tie = best - std::max(best * 1e-9, 2 * eps_c);
     int key = 0;
     for (int k = 0, found = 0; k < 3 && !found; ++k) {
-      if (ce[k] >= best * (1 - 1e-9)) key = k, found = 1;
-      else if (ne[k] >= best * (1 - 1e-9)) key = 3 + k, found = 1;
+      if (ce[k] >= tie) key = k, found = 1;
+      else if (ne[k] >= tie) key = 3 + k, found = 1;
     }
     int mid = (begin + end) / 2;
     auto value = [&](int p) { return key < 3 ? g.centroid[p][key] : g.normal[p][key - 3]; };
@@ -583,12 +586,14 @@ class Refiner {
       progress(A.area * B.area, loc);
       return;
     }
+    // Pairs in one order whichever way the recursion met them (the lower index first): the leaf pair's source among
+    // equal areas and both kinds' ray samples depend on it.
     if (A.leaf() && B.leaf()) {
-      leaf_pair(d_.perm[A.begin], d_.perm[B.begin], loc, from);
+      leaf_pair(std::min(d_.perm[A.begin], d_.perm[B.begin]), std::max(d_.perm[A.begin], d_.perm[B.begin]), loc, from);
       progress(A.area * B.area, loc);
       return;
     }
-    if (try_far(a, b, loc, from)) {
+    if (try_far(std::min(a, b), std::max(a, b), loc, from)) {
       progress(A.area * B.area, loc);
       return;
     }
@@ -613,7 +618,11 @@ class Refiner {
       pass = &own;
       pass_level = 1;
     }
-    const bool split_b = A.leaf() || (!B.leaf() && B.R > A.R);
+    // The larger node is split; nodes within 1e-9 of each other's size count as equal (a regular grid's clusters,
+    // whose sizes a moved model rounds either way: splitting the other one gives other links), the higher index
+    // split then.
+    const bool near_equal = std::abs(B.R - A.R) <= 1e-9 * std::max(A.R, B.R);
+    const bool split_b = A.leaf() || (!B.leaf() && (near_equal ? b > a : B.R > A.R));
     const int keep = split_b ? a : b, s = split_b ? b : a;
     const int c0 = d_.nodes[s].left, c1 = d_.nodes[s].right;
     if (std::min(A.level, B.level) < kParallelLevels)
@@ -631,7 +640,9 @@ class Refiner {
     const double D = U.norm();
     if (!(D > 0)) return false;
     const double s = (A.R + B.R) / D;
-    if (!(s < 0.5)) return false;
+    // (Below 1/2 by a margin of 1e-8: a regular grid's clusters at exactly 1/2, such as 2 x 2 patches of 0.5 m two
+    // clusters apart diagonally, are refined whatever the rounding of a moved model.)
+    if (!(s < 0.5 * (1 - 1e-8))) return false;
     const Vec3 w = U / D;
     // Per side: m = cos(theta + cone + delta), the smallest cosine of a normal with a direction between the
     // clusters (theta the angle between the cone's axis and the centre direction, delta = asin(s) the angle the
