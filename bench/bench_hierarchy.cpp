@@ -1,8 +1,10 @@
 // Hierarchical against dense operator: build time, solve time, memory and radiance error.
-//   cube N     closed unit cube, N x N quads per face (inward), rho = 0.5, the top face (+z) emits Le = 1
+//   cube N     closed unit cube, N x N quads per face (inward), rho = 0.5 (--rho R), the top face (+z) emits Le = 1
+//              (--rho 0.01: nearly the direct light alone, where the far links from the emitter err)
 //   obj PATH   an OBJ scene (materials from its MTL), e.g. ../shared/models/udales_shape.obj, closed by a
 //              large emitting sky box (Le = 1, rho = 0) around it when --sky is given
-// Usage: bench_hierarchy [--dense] [--two-pass] [--no-portals] [--tolerance T] [--threads K] cube N | obj PATH [--sky]
+// Usage: bench_hierarchy [--dense] [--two-pass] [--no-portals] [--tolerance T] [--threads K] [--rho R] cube N |
+//        obj PATH [--sky]
 // With --dense and LAMBERT_HIERARCHY_ERRORS=FILE: per patch index, centroid, L_h and L_d (channel 0) into FILE (where the
 // hierarchy's error sits).
 // --two-pass: brightness for the refinement from a first solve at 10x the tolerance (an experiment; the CLI
@@ -52,11 +54,11 @@ struct Problem {
   ColorField rho, Le;
 };
 
-Problem cube(int n) {
+Problem cube(int n, double rho) {
   Problem p;
   p.g = mesh::PatchGeometry::from_polygons(mesh::shapes::box(Vec3::Zero(), Vec3::Ones(), n, true));
   const int N = p.g.size();
-  p.rho = ColorField::Constant(N, 3, 0.5);
+  p.rho = ColorField::Constant(N, 3, rho);
   p.Le = ColorField::Zero(N, 3);
   for (int i = 0; i < N; ++i)
     if (p.g.centroid[i].z() > 1 - 1e-9) p.Le.row(i).setConstant(1.0);
@@ -99,7 +101,7 @@ Problem obj(const std::string& path, bool sky) {
 
 int main(int argc, char** argv) {
   bool dense = false, sky = false, two_pass = false, portals = true;
-  double tol = 1e-3, entry_tol = 0;
+  double tol = 1e-3, entry_tol = 0, cube_rho = 0.5;
   int threads = 0;
   std::string kind, arg;
   for (int k = 1; k < argc; ++k) {
@@ -110,17 +112,18 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[k], "--tolerance") && k + 1 < argc) tol = std::atof(argv[++k]);
     else if (!std::strcmp(argv[k], "--threads") && k + 1 < argc) threads = std::atoi(argv[++k]);
     else if (!std::strcmp(argv[k], "--entry-tolerance") && k + 1 < argc) entry_tol = std::atof(argv[++k]);
+    else if (!std::strcmp(argv[k], "--rho") && k + 1 < argc) cube_rho = std::atof(argv[++k]);
     else if (kind.empty()) kind = argv[k];
     else arg = argv[k];
   }
   if (kind.empty() || arg.empty()) {
-    std::fprintf(stderr, "usage: bench_hierarchy [--dense] [--no-portals] [--tolerance T] [--entry-tolerance E] [--threads K] cube N | obj PATH "
+    std::fprintf(stderr, "usage: bench_hierarchy [--dense] [--no-portals] [--tolerance T] [--entry-tolerance E] [--threads K] [--rho R] cube N | obj PATH "
                  "[--sky]\n");
     return 1;
   }
   std::optional<tbb::global_control> gc;
   if (threads > 0) gc.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
-  const Problem p = kind == "cube" ? cube(std::atoi(arg.c_str())) : obj(arg, sky);
+  const Problem p = kind == "cube" ? cube(std::atoi(arg.c_str()), cube_rho) : obj(arg, sky);
   const int N = p.g.size();
   const double rho_max = p.rho.maxCoeff();
   std::printf("patches %d, rho_max %.3g, tolerance %.1e, baseline VmHWM %.0f MB\n", N, rho_max, tol, vm_hwm_kb() / 1024.0);
