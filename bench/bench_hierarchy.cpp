@@ -6,7 +6,8 @@
 // Usage: bench_hierarchy [--dense] [--two-pass] [--no-portals] [--tolerance T] [--threads K] [--rho R] cube N |
 //        obj PATH [--sky]
 // With --dense and LAMBERT_HIERARCHY_ERRORS=FILE: per patch index, centroid, L_h and L_d (channel 0) into FILE (where the
-// hierarchy's error sits).
+// hierarchy's error sits). With --dense and LAMBERT_PROBE_ROW=i: row i of both operators (the hierarchy's per patch
+// pair, for_each_in_row) summed over emitting and other sources, and the 12 sources it has most below dense.
 // --two-pass: brightness for the refinement from a first solve at 10x the tolerance (an experiment; the CLI
 // uses the a-priori bound Le + rho max Le / (1 - rho_max)).
 // The dense reference (--dense) is assembled at the default tolerance and solved to 1e-10; the error is
@@ -14,6 +15,7 @@
 // last, so the hierarchical figure is not inflated by it).
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -190,6 +192,32 @@ int main(int argc, char** argv) {
         std::fprintf(f, "%d,%.9g,%.9g,%.9g,%.17g,%.17g\n", i, p.g.centroid[i].x(), p.g.centroid[i].y(),
                      p.g.centroid[i].z(), sh.radiance(i, 0), sd.radiance(i, 0));
       if (f) std::fclose(f);
+    }
+    const char* pr = std::getenv("LAMBERT_PROBE_ROW");
+    if (pr && std::atoi(pr) >= 0 && std::atoi(pr) < N) {  // where a row's light goes missing (see the header)
+      const int i = std::atoi(pr);
+      std::vector<double> fh(size_t(N), 0.0);
+      H->for_each_in_row(i, [&](int j, double f) { fh[size_t(j)] += f; });
+      double sd_sky = 0, sh_sky = 0, sd_city = 0, sh_city = 0, Ld = 0, Lh = 0;  // emitters ("sky") and the rest
+      std::vector<std::pair<double, int>> diffs;
+      for (int j = 0; j < N; ++j) {
+        const double fd = F->matrix()(i, j);
+        const bool skyp = p.Le(j, 0) > 0;
+        (skyp ? sd_sky : sd_city) += fd;
+        (skyp ? sh_sky : sh_city) += fh[size_t(j)];
+        Ld += fd * sd.radiance(j, 0);
+        Lh += fh[size_t(j)] * sd.radiance(j, 0);
+        diffs.push_back({fh[size_t(j)] - fd, j});
+      }
+      std::printf("row %d: F to emitters dense %.6e hierarchical %.6e; to the rest dense %.6e hierarchical %.6e; "
+                  "sum F L_d dense %.6e hierarchical %.6e\n", i, sd_sky, sh_sky, sd_city, sh_city, Ld, Lh);
+      std::sort(diffs.begin(), diffs.end());
+      for (int k = 0; k < std::min(12, N); ++k) {
+        const int j = diffs[size_t(k)].second;
+        std::printf("  source %d (%s, centroid %.1f %.1f %.1f): dense %.4e hierarchical %.4e\n", j,
+                    p.Le(j, 0) > 0 ? "emitter" : "other", p.g.centroid[j].x(), p.g.centroid[j].y(),
+                    p.g.centroid[j].z(), F->matrix()(i, j), fh[size_t(j)]);
+      }
     }
     std::printf("dense: assemble %.2f s, solve %.2f s, total %.2f s, VmHWM %.0f MB\n", t_ff, t_ds, t_ff + t_ds,
                 vm_hwm_kb() / 1024.0);

@@ -151,6 +151,46 @@ TEST(Hierarchy, GapInAWallWithinAdmittedError) {
   std::printf("windows whose ground gets more error than admitted: %d of 12\n", failures);
 }
 
+// A blocked cluster link must be blocked for each of its receiving patches, not on its node's area average: a large
+// ground patch under a roof and a small one beside the roof's edge, in one node, lit by a distant emitter. The rays
+// of the link between that node and the emitter once went to its patches by area (the small one: 1 in 800), all
+// found the roof and certified the link as blocked: the small patch lost its whole form factor to the emitter, 1.25e-2
+// against an admitted 1.7e-3, in every position (udales in the sky box: wall patches lost 1.2 % of their radiance
+// so). Now each patch of a node takes its turn, and the small one's rays see the emitter: the link is refined.
+// Property and tolerance as above: the hierarchical F x against the dense one within each row's admitted error
+// (1e-12: summation order), for a few positions of the small patch (each another draw of rays).
+TEST(Hierarchy, BlockedLinksHoldForEachReceivingPatch) {
+  for (int k = 0; k < 6; ++k) {
+    const double y = 0.5 + 0.9 * k;
+    mesh::shapes::Polygons p;
+    p.push_back({Vec3(0, 0, 0), Vec3(5.5, 0, 0), Vec3(5.5, 6, 0), Vec3(0, 6, 0)});                  // ground, +z
+    p.push_back({Vec3(6.05, y, 0), Vec3(6.25, y, 0), Vec3(6.25, y + 0.2, 0), Vec3(6.05, y + 0.2, 0)});  // small, +z
+    p.push_back({Vec3(-20, -20, 0.5), Vec3(-20, 26, 0.5), Vec3(6, 26, 0.5), Vec3(6, -20, 0.5)});      // roof, -z
+    p.push_back({Vec3(-20, -17, 200), Vec3(-20, 23, 200), Vec3(20, 23, 200), Vec3(20, -17, 200)});    // emitter, -z
+    const mesh::PatchGeometry g = polys(p);
+    Options fo;
+    fo.tolerance = 1e-10;
+    const DenseMatrixOperator F = assemble(g, fo);
+    HierarchyOptions ho;
+    ho.tolerance = 1e-2;
+    ho.entry_tolerance = 1e-10;
+    HierarchyStats st;
+    const HierarchicalOperator H = build_hierarchy(g, ho, &st);
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(4), yd(4), yh(4);
+    x[3] = 1;  // the emitter
+    F.apply(x, yd);
+    H.apply(x, yh);
+    std::printf("small patch at y %.1f: F to the emitter dense %.4e hierarchical %.4e (admitted %.2e); ground %.4e "
+                "%.4e; %lld cluster links, %lld blocked\n", y, yd[1], yh[1], st.row_error[1], yd[0], yh[0],
+                st.far_links, st.links_blocked);
+    EXPECT_GT(yd[1], 1e-2) << "the small patch sees the emitter";
+    for (int i = 0; i < 2; ++i)
+      EXPECT_LE(std::abs(yh[i] - yd[i]), st.row_error[i] + 1e-12)
+          << "position " << k << ", patch " << i << ": dense " << yd[i] << " hierarchical " << yh[i] << " admitted "
+          << st.row_error[i];
+  }
+}
+
 // Solves with the hierarchical operator; returns the radiance (channel 0) and the error bound of
 // docs/physics.md §5 from the hierarchy's admitted row error, its visibility (3 sigma) and the residual.
 struct HSolve {
@@ -181,16 +221,19 @@ HSolve solve_h(const mesh::PatchGeometry& g, double rho, const Eigen::VectorXd& 
 
 // White furnace: a closed room with a floating block, uniform E0 and rho: L = E0 / (1 - rho) everywhere.
 // Push-pull must neither lose nor create energy beyond the admitted error. Tolerance: the bound above.
+// The hierarchy's tolerance is 2e-3: since blocked cluster links admit what each receiving patch's share of their
+// rays may have missed (not the node's average), the bound at 1e-2 is 6.9e-2 (was 2.7e-2), above the 5 % this test
+// takes as too loose to guard anything; at 2e-3 it is 3.7e-2 for an error of 1.8e-3.
 TEST(Hierarchy, ClosedFurnaceStaysAtClosedForm) {
   const mesh::PatchGeometry g = polys(mesh::shapes::room_with_block(12, 4));
   const double rho = 0.5, E0 = 1;
-  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 1e-2);
+  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 2e-3);
   const double exact = E0 / (1 - rho);
   double worst = 0;
   int at = 0;
   for (int i = 0; i < g.size(); ++i)
     if (std::abs(r.L[i] - exact) / exact > worst) worst = std::abs(r.L[i] - exact) / exact, at = i;
-  std::printf("furnace: %lld far links, worst relative error %.2e at %d, bound %.2e\n", r.st.far_links, worst, at, r.bound);
+  std::printf("furnace: %lld far links, worst relative error %.2e at %d, bound %.2e (row error %.2e, visibility sigma %.2e)\n", r.st.far_links, worst, at, r.bound, r.st.row_error_max, r.st.row_visibility_sigma_max);
   EXPECT_GT(r.st.far_links, 0) << "no cluster link: the test would not exercise push-pull";
   EXPECT_LE(worst, r.bound) << "patch " << at << " L " << r.L[at] << " exact " << exact;
   EXPECT_LT(r.bound, 0.05) << "bound too loose to guard anything";
@@ -203,7 +246,7 @@ TEST(Hierarchy, ClosedFurnaceStaysAtClosedForm) {
 TEST(Hierarchy, SphereAtRho0999WithinTolerance) {
   const mesh::PatchGeometry g = polys(mesh::shapes::icosphere(3, 1.0, true));
   const double rho = 0.999, E0 = 1;
-  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 1e-2);
+  const HSolve r = solve_h(g, rho, Eigen::VectorXd::Constant(g.size(), E0), 2e-3);
   const double exact = E0 / (1 - rho);
   double worst = 0;
   int at = 0;
