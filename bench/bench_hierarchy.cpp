@@ -7,7 +7,9 @@
 //        obj PATH [--sky]
 // With --dense and LAMBERT_HIERARCHY_ERRORS=FILE: per patch index, centroid, L_h and L_d (channel 0) into FILE (where the
 // hierarchy's error sits). With --dense and LAMBERT_PROBE_ROW=i: row i of both operators (the hierarchy's per patch
-// pair, for_each_in_row) summed over emitting and other sources, and the 12 sources it has most below dense.
+// pair, for_each_in_row) summed over emitting and other sources, and the 12 sources it has most below dense;
+// LAMBERT_PROBE_J=j puts source j first, and LAMBERT_PROBE_EXACT=1 adds the first two's exact visible form factor
+// (visible_polygon_to_polygon against every other patch: seconds on udales), a reference for both ray estimates.
 // --two-pass: brightness for the refinement from a first solve at 10x the tolerance (an experiment; the CLI
 // uses the a-priori bound Le + rho max Le / (1 - rho_max)).
 // The dense reference (--dense) is assembled at the default tolerance and solved to 1e-10; the error is
@@ -26,6 +28,7 @@
 
 #include "lambert/formfactor/assemble.hpp"
 #include "lambert/formfactor/hierarchy.hpp"
+#include "lambert/formfactor/kernel.hpp"
 #include "lambert/io/readers.hpp"
 #include "lambert/mesh/prepare.hpp"
 #include "lambert/mesh/scene.hpp"
@@ -213,10 +216,19 @@ int main(int argc, char** argv) {
                   "sum F L_d dense %.6e hierarchical %.6e\n", i, sd_sky, sh_sky, sd_city, sh_city, Ld, Lh);
       std::sort(diffs.begin(), diffs.end());
       for (int k = 0; k < std::min(12, N); ++k) {
-        const int j = diffs[size_t(k)].second;
+        const char* pj = std::getenv("LAMBERT_PROBE_J");
+        const int j = pj && k == 0 && std::atoi(pj) >= 0 && std::atoi(pj) < N ? std::atoi(pj) : diffs[size_t(k)].second;
         std::printf("  source %d (%s, centroid %.1f %.1f %.1f): dense %.4e hierarchical %.4e\n", j,
                     p.Le(j, 0) > 0 ? "emitter" : "other", p.g.centroid[j].x(), p.g.centroid[j].y(),
                     p.g.centroid[j].z(), F->matrix()(i, j), fh[size_t(j)]);
+        if (k < 2 && std::getenv("LAMBERT_PROBE_EXACT")) {
+          std::vector<std::vector<Vec3>> occ;
+          for (int q = 0; q < N; ++q)
+            if (q != i && q != j) occ.emplace_back(p.g.polygon(q).begin(), p.g.polygon(q).end());
+          const auto vis = formfactor::visible_polygon_to_polygon(p.g.polygon(i), p.g.polygon(j), occ, 1e-7);
+          const auto unoccluded = formfactor::polygon_to_polygon(p.g.polygon(i), p.g.polygon(j), 1e-10);
+          std::printf("    exact visible F %.4e (unoccluded %.4e, estimate %.1e)\n", vis.F, unoccluded.F, vis.error_estimate);
+        }
       }
     }
     std::printf("dense: assemble %.2f s, solve %.2f s, total %.2f s, VmHWM %.0f MB\n", t_ff, t_ds, t_ff + t_ds,

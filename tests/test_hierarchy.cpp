@@ -155,8 +155,8 @@ TEST(Hierarchy, GapInAWallWithinAdmittedError) {
 // ground patch under a roof and a small one beside the roof's edge, in one node, lit by a distant emitter. The rays
 // of the link between that node and the emitter once went to its patches by area (the small one: 1 in 800), all
 // found the roof and certified the link as blocked: the small patch lost its whole form factor to the emitter, 1.25e-2
-// against an admitted 1.7e-3, in every position (udales in the sky box: wall patches lost 1.2 % of their radiance
-// so). Now each patch of a node takes its turn, and the small one's rays see the emitter: the link is refined.
+// against an admitted 1.7e-3, in every position. Now each patch of a node takes its turn, and the small one's rays
+// see the emitter: the link is refined.
 // Property and tolerance as above: the hierarchical F x against the dense one within each row's admitted error
 // (1e-12: summation order), for a few positions of the small patch (each another draw of rays).
 TEST(Hierarchy, BlockedLinksHoldForEachReceivingPatch) {
