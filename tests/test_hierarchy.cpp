@@ -101,6 +101,24 @@ TEST(Hierarchy, MatchesDenseWithinAdmittedError) {
 }
 
 
+// The dense operator (per-entry tolerance 1e-10) and the hierarchical one at `tolerance` (leaf entries at 1e-10)
+// of one scene, for comparisons of F x. `g` must outlive the result (the hierarchy keeps it).
+struct DenseAndHierarchy {
+  DenseMatrixOperator F;
+  HierarchicalOperator H;
+  HierarchyStats st;
+};
+DenseAndHierarchy dense_and_hierarchy(const mesh::PatchGeometry& g, double tolerance) {
+  Options fo;
+  fo.tolerance = 1e-10;
+  HierarchyOptions ho;
+  ho.tolerance = tolerance;
+  ho.entry_tolerance = 1e-10;
+  DenseAndHierarchy r{assemble(g, fo), {}, {}};
+  r.H = build_hierarchy(g, ho, &r.st);
+  return r;
+}
+
 // A ground of 16 x 16 patches (8 m) lit by a distant emitter (4 x 4 patches, 24 m) through a 0.5 m window in a wall
 // between them: a few ground patches see the emitter, the rest do not. Cluster links accepted as blocked miss some
 // of that light (the hierarchy gives 0 where dense has up to 1.5e-3); what their rays may have missed must be in
@@ -124,14 +142,7 @@ TEST(Hierarchy, GapInAWallWithinAdmittedError) {
     for (const auto& q : grid(Vec3(40, -8, 0), Vec3(0, 0, 24), Vec3(0, 24, 0), 4, 4)) p.push_back(q);  // emitter, -x
     const mesh::PatchGeometry g = polys(p);
     const int n = g.size();
-    Options fo;
-    fo.tolerance = 1e-10;
-    const DenseMatrixOperator F = assemble(g, fo);
-    HierarchyOptions ho;
-    ho.tolerance = 1e-3;
-    ho.entry_tolerance = 1e-10;
-    HierarchyStats st;
-    const HierarchicalOperator H = build_hierarchy(g, ho, &st);
+    const auto [F, H, st] = dense_and_hierarchy(g, 1e-3);
     Eigen::VectorXd x = Eigen::VectorXd::Zero(n), y0v(n), y1v(n);
     for (int i = n - 16; i < n; ++i) x[i] = 1;  // the emitter
     F.apply(x, y0v);
@@ -167,15 +178,8 @@ TEST(Hierarchy, BlockedLinksHoldForEachReceivingPatch) {
     p.push_back({Vec3(6.05, y, 0), Vec3(6.25, y, 0), Vec3(6.25, y + 0.2, 0), Vec3(6.05, y + 0.2, 0)});  // small, +z
     p.push_back({Vec3(-20, -20, 0.5), Vec3(-20, 26, 0.5), Vec3(6, 26, 0.5), Vec3(6, -20, 0.5)});      // roof, -z
     p.push_back({Vec3(-20, -17, 200), Vec3(-20, 23, 200), Vec3(20, 23, 200), Vec3(20, -17, 200)});    // emitter, -z
-    const mesh::PatchGeometry g = polys(p);
-    Options fo;
-    fo.tolerance = 1e-10;
-    const DenseMatrixOperator F = assemble(g, fo);
-    HierarchyOptions ho;
-    ho.tolerance = 1e-2;
-    ho.entry_tolerance = 1e-10;
-    HierarchyStats st;
-    const HierarchicalOperator H = build_hierarchy(g, ho, &st);
+    const mesh::PatchGeometry g = polys(p);  // outlives the operator (build_hierarchy)
+    const auto [F, H, st] = dense_and_hierarchy(g, 1e-2);
     Eigen::VectorXd x = Eigen::VectorXd::Zero(4), yd(4), yh(4);
     x[3] = 1;  // the emitter
     F.apply(x, yd);
