@@ -7,8 +7,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lambert::test {
@@ -54,5 +56,18 @@ class Cli : public ::testing::Test {
   }
   fs::path dir;
 };
+
+// The lines i,j,F_ij of a `lambert formfactors` output file, by (i, j); lines that are not three numbers are skipped.
+inline std::map<std::pair<int, int>, double> read_form_factors(const std::string& path) {
+  std::map<std::pair<int, int>, double> m;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    int i = 0, j = 0;
+    double f = 0;
+    if (std::sscanf(line.c_str(), "%d,%d,%lf", &i, &j, &f) == 3) m[{i, j}] = f;
+  }
+  return m;
+}
 
 }  // namespace lambert::test

@@ -53,18 +53,7 @@ void FarFromOrigin::expect_same_form_factors(const std::string& name, const std:
   const auto b = test::run("formfactors " + far + " -o " + path("b.csv") + " --quiet " + options);
   ASSERT_EQ(a.status, 0) << a.output;
   ASSERT_EQ(b.status, 0) << b.output;
-  auto load = [](const std::string& file) {
-    std::map<std::pair<int, int>, double> m;
-    std::ifstream in(file);
-    std::string line;
-    while (std::getline(in, line)) {
-      int i = 0, j = 0;
-      double f = 0;
-      if (std::sscanf(line.c_str(), "%d,%d,%lf", &i, &j, &f) == 3) m[{i, j}] = f;
-    }
-    return m;
-  };
-  const auto fa = load(path("a.csv")), fb = load(path("b.csv"));
+  const auto fa = test::read_form_factors(path("a.csv")), fb = test::read_form_factors(path("b.csv"));
   ASSERT_GT(fa.size(), 100000u) << name << "'s form factors";
   EXPECT_EQ(fa.size(), fb.size()) << name;
   int reported = 0;

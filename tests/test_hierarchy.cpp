@@ -389,20 +389,6 @@ TEST(Hierarchy, GaussSeidelRefusedWithoutRows) {
 // exactly the entries below it.
 class HierarchyCli : public test::Cli {};
 
-std::map<std::pair<int, int>, double> read_csv(const std::string& path) {
-  std::map<std::pair<int, int>, double> m;
-  std::ifstream f(path);
-  std::string line;
-  while (std::getline(f, line)) {
-    int i, j;
-    double v;
-    char c1, c2;
-    std::istringstream is(line);
-    if (is >> i >> c1 >> j >> c2 >> v) m[{i, j}] = v;
-  }
-  return m;
-}
-
 TEST_F(HierarchyCli, FormfactorsStreamingMatchesDense) {
   const std::string scene = std::string(LAMBERT_SOURCE_DIR) + "/examples/cornell_box.obj";
   const auto d = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("d.csv") + " --operator dense -q");
@@ -413,7 +399,7 @@ TEST_F(HierarchyCli, FormfactorsStreamingMatchesDense) {
   const nlohmann::json js = nlohmann::json::parse(std::ifstream(path("h.json")));
   ASSERT_EQ(js["operator"]["kind"], "hierarchical");
   const double admitted = js["hierarchy"]["row_error_max"].get<double>() + 3 * js["hierarchy"]["row_visibility_sigma_max"].get<double>();
-  const auto D = read_csv(path("d.csv")), H = read_csv(path("h.csv"));
+  const auto D = test::read_form_factors(path("d.csv")), H = test::read_form_factors(path("h.csv"));
   ASSERT_GT(D.size(), 100u);
   double worst = 0;
   std::pair<int, int> at{-1, -1};
@@ -433,7 +419,7 @@ TEST_F(HierarchyCli, FormfactorsStreamingMatchesDense) {
   const auto m = test::run("formfactors " + scene + " --max-edge 0.06 -o " + path("m.csv") +
                            " --operator hierarchical --hierarchy-tolerance 1e-2 --min-factor 0.01 -q");
   ASSERT_EQ(m.status, 0) << m.output;
-  const auto M = read_csv(path("m.csv"));
+  const auto M = test::read_form_factors(path("m.csv"));
   for (const auto& [k, v] : M) EXPECT_GE(v, 0.01) << k.first << "," << k.second;
   size_t expected = 0;
   for (const auto& [k, v] : H) expected += v >= 0.01;
@@ -458,7 +444,7 @@ TEST_F(HierarchyCli, FormfactorsDoNotDependOnTheMaterials) {
   const auto unlit = test::run("formfactors " + scene + " --materials " + path("unlit.json") + " -o " + path("unlit.csv") +
                                " --stats " + path("unlit.json.out") + common);
   ASSERT_EQ(unlit.status, 0) << unlit.output;
-  const auto A = read_csv(path("lit.csv")), B = read_csv(path("unlit.csv"));
+  const auto A = test::read_form_factors(path("lit.csv")), B = test::read_form_factors(path("unlit.csv"));
   ASSERT_GT(A.size(), 100u);
   EXPECT_EQ(A.size(), B.size());
   long long differ = 0;
