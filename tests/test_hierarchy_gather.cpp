@@ -1,4 +1,4 @@
-// The hierarchy's far-link kernel (formfactor/src/batch.hpp, gather_links): the second-order expansion of the point
+// The hierarchy's far-link kernel (formfactor/src/batch.hpp, gather_links): the third-order expansion of the point
 // kernel about both cluster centres, evaluated 8 links at a time, against the point kernel summed directly.
 #include <gtest/gtest.h>
 
@@ -16,8 +16,10 @@ namespace {
 
 namespace fd = formfactor::detail;
 constexpr double kPi = 3.14159265358979323846;
-constexpr int kK[6] = {0, 1, 2, 0, 0, 1}, kL[6] = {0, 1, 2, 1, 2, 2};
-constexpr double kMult[6] = {1, 1, 1, 2, 2, 2};
+using fd::kPairMult;
+using fd::kPairs;
+using fd::kTripleMult;
+using fd::kTriples;
 
 // A source cluster: points c + b_j with normals n_j and weights w_j = A_j x_j.
 struct Cluster {
@@ -43,7 +45,8 @@ Cluster random_cluster(std::mt19937& rng, const Vec3& c, double size, int count)
   return k;
 }
 
-// The record gather_links reads: centre, V = sum w n, W = sum w n b^T, T(:, kl) = sum w n b_k b_l (column-major).
+// The record gather_links reads: centre, V = sum w n, W = sum w n b^T, T(:, kl) = sum w n b_k b_l,
+// U(:, klm) = sum w n b_k b_l b_m (column-major).
 std::array<double, fd::kMomentRecord> record(const Cluster& k) {
   std::array<double, fd::kMomentRecord> r{};
   for (int i = 0; i < 3; ++i) r[size_t(i)] = k.c[i];
@@ -52,7 +55,9 @@ std::array<double, fd::kMomentRecord> record(const Cluster& k) {
     for (int i = 0; i < 3; ++i) {
       r[size_t(3 + i)] += v[i];
       for (int col = 0; col < 3; ++col) r[size_t(6 + 3 * col + i)] += v[i] * k.b[j][col];
-      for (int kl = 0; kl < 6; ++kl) r[size_t(15 + 3 * kl + i)] += v[i] * k.b[j][kK[kl]] * k.b[j][kL[kl]];
+      for (int kl = 0; kl < 6; ++kl) r[size_t(15 + 3 * kl + i)] += v[i] * k.b[j][kPairs[kl][0]] * k.b[j][kPairs[kl][1]];
+      for (int q = 0; q < 10; ++q)
+        r[size_t(33 + 3 * q + i)] += v[i] * k.b[j][kTriples[q][0]] * k.b[j][kTriples[q][1]] * k.b[j][kTriples[q][2]];
     }
   }
   return r;
@@ -70,7 +75,7 @@ double direct(const std::vector<Cluster>& src, const std::vector<float>& vis, co
   return s;
 }
 
-// n . (g - J a + H[a, a] / 2) from gather_links' output about the receiver centre ca, at x = ca + a.
+// n . (g - J a + H[a, a] / 2 - C[a, a, a] / 6) from gather_links' output about the receiver centre ca, at x = ca + a.
 double expanded(const fd::BatchKernels& K, const std::vector<Cluster>& src, const std::vector<float>& vis,
                 const Vec3& ca, const Vec3& a, const Vec3& n) {
   std::vector<double> rec;
@@ -80,25 +85,29 @@ double expanded(const fd::BatchKernels& K, const std::vector<Cluster>& src, cons
     rec.insert(rec.end(), r.begin(), r.end());
     idx.push_back(int(e));
   }
-  double out[30] = {};
+  double out[fd::kLocalRecord] = {};
   K.gather_links(rec.data(), ca.data(), idx.data(), vis.data(), (long long)src.size(), out);
   Vec3 G(out[0], out[1], out[2]);
   for (int col = 0; col < 3; ++col)
     for (int row = 0; row < 3; ++row) G[row] -= out[3 + 3 * col + row] * a[col];
   for (int kl = 0; kl < 6; ++kl)
-    for (int row = 0; row < 3; ++row) G[row] += 0.5 * kMult[kl] * a[kK[kl]] * a[kL[kl]] * out[12 + 3 * kl + row];
+    for (int row = 0; row < 3; ++row)
+      G[row] += 0.5 * kPairMult[kl] * a[kPairs[kl][0]] * a[kPairs[kl][1]] * out[12 + 3 * kl + row];
+  for (int q = 0; q < 10; ++q)
+    for (int row = 0; row < 3; ++row)
+      G[row] -= kTripleMult[q] / 6 * a[kTriples[q][0]] * a[kTriples[q][1]] * a[kTriples[q][2]] * out[30 + 3 * q + row];
   return n.dot(G);
 }
 
 using batchtest::supported_kernels;
 
-// The expansion is of second order in the source offsets b and the receiver offset a: its error relative to the
-// directly summed kernel falls like (size / distance)^3. 13 links per call (one full step of 8 lanes and a padded
+// The expansion is of third order in the source offsets b and the receiver offset a: its error relative to the
+// directly summed kernel falls like (size / distance)^4. 13 links per call (one full step of 8 lanes and a padded
 // one), sources spread round the receiver at distance 1, cluster sizes s = 0.04 and s / 2. Tolerance: the ratio
-// of the two errors below 1/5.5 (1/8 in the limit, 1/4 for a first-order error: a wrong second-order term), and
-// the error at s = 0.02 below 2e-5 relative (third order: (0.02 * sqrt 3 * 2)^3 ~ 4e-4 times the expansion's small
-// coefficients, summed over 13 links of either sign).
-TEST(HierarchyGather, ExpansionErrorFallsWithTheCubeOfTheClusterSize) {
+// of the two errors below 1/11 (1/16 in the limit, 1/8 for a wrong third-order term), and the error at s = 0.02
+// below 2e-6 relative (fourth order: (0.02 * sqrt 3 * 2)^4 ~ 1.8e-5 times the expansion's small coefficients,
+// summed over 13 links of either sign).
+TEST(HierarchyGather, ExpansionErrorFallsWithTheFourthPowerOfTheClusterSize) {
   for (const fd::BatchKernels* K : supported_kernels()) {
     double err[2] = {0, 0}, scale = 0;
     for (int trial = 0; trial < 20; ++trial) {
@@ -128,10 +137,10 @@ TEST(HierarchyGather, ExpansionErrorFallsWithTheCubeOfTheClusterSize) {
       }
     }
     const double ratio = err[1] / err[0];
-    std::printf("%s: mean relative error %.3e at s = 0.04, %.3e at s = 0.02, ratio %.4f (1/8 = 0.125)\n", K->name,
+    std::printf("%s: mean relative error %.3e at s = 0.04, %.3e at s = 0.02, ratio %.4f (1/16 = 0.0625)\n", K->name,
                 err[0] / 20, err[1] / 20, ratio);
-    EXPECT_LT(ratio, 1 / 5.5) << K->name << ": errors " << err[0] / 20 << " and " << err[1] / 20;
-    EXPECT_LT(err[1] / 20, 2e-5) << K->name;
+    EXPECT_LT(ratio, 1 / 11.0) << K->name << ": errors " << err[0] / 20 << " and " << err[1] / 20;
+    EXPECT_LT(err[1] / 20, 2e-6) << K->name;
   }
 }
 
@@ -154,15 +163,15 @@ TEST(HierarchyGather, SameOnEveryInstructionSet) {
     std::vector<float> vis;
     for (int e = 0; e < count; ++e) src.push_back(Ub(rng)), vis.push_back(float(Uv(rng)));
     const Vec3 ca(0.05, -0.02, 0.01);
-    double ref[30] = {};
+    double ref[fd::kLocalRecord] = {};
     kernels[0]->gather_links(rec.data(), ca.data(), src.data(), vis.data(), count, ref);
     double big = 0;
     for (double v : ref) big = std::max(big, std::abs(v));
     ASSERT_GT(big, 0) << "count " << count;
     for (size_t k = 1; k < kernels.size(); ++k) {
-      double out[30] = {};
+      double out[fd::kLocalRecord] = {};
       kernels[k]->gather_links(rec.data(), ca.data(), src.data(), vis.data(), count, out);
-      for (int c = 0; c < 30; ++c)
+      for (int c = 0; c < fd::kLocalRecord; ++c)
         EXPECT_NEAR(out[c], ref[c], 1e-12 * big) << kernels[k]->name << " count " << count << " output " << c;
     }
   }

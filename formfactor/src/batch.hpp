@@ -48,11 +48,11 @@ struct BatchKernels {
   void (*transpose)(const double* area, double* F, long long stride, int i0, int i1, int j0, int j1, bool diag,
                     const double* err, int err_stride, double* row_i, double* row_j, double* err_i, double* err_j,
                     long long* outside, long long* roundoff);
-  // The far links of one receiver cluster in the hierarchy's product (hierarchy_apply.cpp): out[0..29] += the
-  // second-order expansion's (g, J, H) about the receiver's centre ca (g: 3, J: 3 x 3, H: 3 x 6, column-major)
-  // summed over the links e < count in order of lanes, source node src[e] with visible fraction vis[e]. rec holds
-  // kMomentRecord doubles per node: its centre (m), then V (3), W (3 x 3) and T (3 x 6) of its moments,
-  // column-major. Centres of a link's two nodes must differ.
+  // The far links of one receiver cluster in the hierarchy's product (hierarchy_apply.cpp): out[0..59] += the
+  // third-order expansion's local record (g, J, H, C) about the receiver's centre ca (g: 3, J: 3 x 3, H: 3 x 6,
+  // C: 3 x 10, column-major) summed over the links e < count in order of lanes, source node src[e] with visible
+  // fraction vis[e]. rec holds kMomentRecord doubles per node: its centre (m), then V (3), W (3 x 3), T (3 x 6) and
+  // U (3 x 10) of its moments, column-major (scripts/gen_far_field3.py). Centres of a link's two nodes must differ.
   void (*gather_links)(const double* rec, const double* ca, const int* src, const float* vis, long long count,
                        double* out);
   // The near-pair contour's inner integral (contour.cpp) at count points of an edge: out[k] = int_0^1
@@ -63,7 +63,14 @@ struct BatchKernels {
   // normal n (kernel.hpp's signed_contour_sum: signed, no 1/2pi), its edges in the lanes.
   double (*contour_sum)(const double* x, const double* n, const double* poly, int m);
 };
-constexpr int kMomentRecord = 33;
+constexpr int kMomentRecord = 63;  // per node: centre 3, V 3, W 9, T 18, U 30
+constexpr int kLocalRecord = 60;   // per node: g 3, J 9, H 18, C 30
+// Symmetric index pairs (xx yy zz xy xz yz) and triples of the moments and expansions, with their multiplicities.
+constexpr int kPairs[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
+constexpr int kTriples[10][3] = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {0, 0, 1}, {0, 0, 2},
+                                 {0, 1, 1}, {1, 1, 2}, {0, 2, 2}, {1, 2, 2}, {0, 1, 2}};
+constexpr double kPairMult[6] = {1, 1, 1, 2, 2, 2};
+constexpr double kTripleMult[10] = {1, 1, 1, 3, 3, 3, 3, 3, 3, 6};
 
 const BatchKernels& batch_kernels();  // the best variant this CPU supports
 const BatchKernels& batch_kernels_avx512();

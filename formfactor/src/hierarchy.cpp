@@ -960,7 +960,7 @@ std::size_t HierarchicalOperator::Impl::bytes() const {
   return nodes.capacity() * sizeof(detail::HNode) + perm.capacity() * 4 + leaf_of.capacity() * 4 +
          far_off.capacity() * 8 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
          std::size_t(leaf_count) * 12 + leaf_blocks.capacity() * 4 + row_sums.capacity() * 8 +
-         nodes.size() * (detail::kMomentRecord + 30) * 8 +  // one set of apply()'s work arrays
+         nodes.size() * (detail::kMomentRecord + detail::kLocalRecord) * 8 +  // one set of apply()'s work arrays
          (leaf_blocks.empty() ? 0 : (leaf_blocks.size() - 1) * std::size_t(n) * 8) +  // and its transposed scatter
          (tr_off.capacity() + tr_entry.capacity()) * 8 + tr_src.capacity() * 4 +
          std::size_t(n) * (sizeof(Vec3) * 2 + 8 * 5 + 48 + 1) +

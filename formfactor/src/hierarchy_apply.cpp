@@ -1,4 +1,4 @@
-// Hierarchical operator: y = F x by pull (cluster moments), gather (far links, second-order expansion of the
+// Hierarchical operator: y = F x by pull (cluster moments), gather (far links, third-order expansion of the
 // kernel about both cluster centres), push (down to the patches) plus the exact leaf entries; rows streamed
 // entry by entry; the memory limit.
 #include <tbb/blocked_range.h>
@@ -40,27 +40,47 @@ double HierarchicalOperator::row_sum(int i) const { return d_->row_sums.empty() 
 
 namespace {
 
-using Mat36 = Eigen::Matrix<double, 3, 6>;  // a vector per symmetric index pair kl: xx yy zz xy xz yz
-constexpr int kK[6] = {0, 1, 2, 0, 0, 1}, kL[6] = {0, 1, 2, 1, 2, 2};
-constexpr double kMult[6] = {1, 1, 1, 2, 2, 2};  // sum over k, l of a symmetric form = sum over kl of mult x
+using Mat36 = Eigen::Matrix<double, 3, 6>;    // a vector per symmetric index pair (detail::kPairs)
+using Mat310 = Eigen::Matrix<double, 3, 10>;  // a vector per symmetric index triple (detail::kTriples)
+using detail::kPairMult;
+using detail::kPairs;
+using detail::kTripleMult;
+using detail::kTriples;
 
-constexpr int kRec = detail::kMomentRecord;  // per node: centre, V, W, T (batch.hpp)
-constexpr int kAcc = 30;                     // per node: g, J, H of the expansion about its centre
+constexpr int kRec = detail::kMomentRecord;  // per node: centre, V, W, T, U (batch.hpp)
+constexpr int kAcc = detail::kLocalRecord;   // per node: g, J, H, C of the expansion about its centre
 constexpr int kParallelPatches = 8192;       // subtrees at least this large are pulled / pushed as parallel tasks
 
-// Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, b = point - node centre (each
-// patch's own second moments included), children before parents.
+// The index of a sorted pair / triple in kPairs / kTriples.
+constexpr int pair_index(int i, int j) {
+  const int a = i < j ? i : j, b = i < j ? j : i;
+  return a == b ? a : (a == 0 ? (b == 1 ? 3 : 4) : 5);
+}
+constexpr int triple_index(int i, int j, int k) {
+  for (int q = 0; q < 10; ++q) {
+    const int a = kTriples[q][0], b = kTriples[q][1], c = kTriples[q][2];
+    if ((a == i && b == j && c == k) || (a == i && b == k && c == j) || (a == j && b == i && c == k) ||
+        (a == j && b == k && c == i) || (a == k && b == i && c == j) || (a == k && b == j && c == i))
+      return q;
+  }
+  return -1;
+}
+
+// Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, U(:,klm) = sum A x n b_k b_l b_m,
+// b = point - node centre (each patch's own second and third moments included), children before parents.
 void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::VectorXd>& x, double* rec, int k) {
   const HNode& nd = d.nodes[size_t(k)];
   double* r = rec + size_t(k) * kRec;
   Eigen::Map<Vec3> V(r + 3);
   Eigen::Map<Mat3> W(r + 6);
   Eigen::Map<Mat36> T(r + 15);
+  Eigen::Map<Mat310> U(r + 33);
   if (nd.leaf()) {
     const int p = d.perm[size_t(nd.begin)];
     V = d.g->area[p] * x[p] * d.g->normal[p];
     W.setZero();
     for (int kl = 0; kl < 6; ++kl) T.col(kl) = V * d.P.M[p][kl];
+    for (int q = 0; q < 10; ++q) U.col(q) = V * d.P.M3[p][q];
     return;
   }
   if (nd.end - nd.begin >= kParallelPatches)
@@ -72,23 +92,32 @@ void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::Vec
   V.setZero();
   W.setZero();
   T.setZero();
+  U.setZero();
   for (const int c : {nd.left, nd.right}) {
     const double* rc = rec + size_t(c) * kRec;
     const Eigen::Map<const Vec3> Vc(rc + 3);
     const Eigen::Map<const Mat3> Wc(rc + 6);
     const Eigen::Map<const Mat36> Tc(rc + 15);
+    const Eigen::Map<const Mat310> Uc(rc + 33);
     const Vec3 dl = d.nodes[size_t(c)].c - nd.c;
     V += Vc;
     W += Wc + Vc * dl.transpose();
     for (int kl = 0; kl < 6; ++kl) {
-      const int a = kK[kl], b = kL[kl];
+      const int a = kPairs[kl][0], b = kPairs[kl][1];
       T.col(kl) += Tc.col(kl) + Wc.col(a) * dl[b] + Wc.col(b) * dl[a] + Vc * (dl[a] * dl[b]);
+    }
+    for (int q = 0; q < 10; ++q) {  // sum v (b' + dl)_a (b' + dl)_b (b' + dl)_e, b' about the child's centre
+      const int a = kTriples[q][0], b = kTriples[q][1], e = kTriples[q][2];
+      U.col(q) += Uc.col(q) + Tc.col(pair_index(a, b)) * dl[e] + Tc.col(pair_index(a, e)) * dl[b] +
+                  Tc.col(pair_index(b, e)) * dl[a] + Wc.col(a) * (dl[b] * dl[e]) + Wc.col(b) * (dl[a] * dl[e]) +
+                  Wc.col(e) * (dl[a] * dl[b]) + Vc * (dl[a] * dl[b] * dl[e]);
     }
   }
 }
 
-// Push: a child at offset a from its parent's centre receives g - J a + H[a,a]/2, J - H[a,.] and H; node k's
-// own record is final when it is called.
+// Push: the expansion h(a) = g - J a + H[a, a] / 2 - C[a, a, a] / 6 about a node's centre, moved to a child at
+// offset a0 (a = a0 + a'): g - J a0 + H[a0, a0] / 2 - C[a0, a0, a0] / 6, J - H[a0, .] + C[a0, a0, .] / 2,
+// H - C[a0, ., .] and C; node k's own record is final when it is called.
 void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
   const HNode& nd = d.nodes[size_t(k)];
   if (nd.leaf()) return;
@@ -96,20 +125,31 @@ void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
   const Eigen::Map<const Vec3> Gp(rp);
   const Eigen::Map<const Mat3> Jp(rp + 3);
   const Eigen::Map<const Mat36> Hp(rp + 12);
+  const Eigen::Map<const Mat310> Cp(rp + 30);
   for (const int c : {nd.left, nd.right}) {
     const Vec3 a = d.nodes[size_t(c)].c - nd.c;
-    Vec3 Haa = Vec3::Zero();
-    Mat3 Ha = Mat3::Zero();  // column l: sum_k H_kl a_k
+    Vec3 Haa = Vec3::Zero(), Caaa = Vec3::Zero();
+    Mat3 Ha = Mat3::Zero(), Caa = Mat3::Zero();  // column l: sum_k H_kl a_k, sum_km C_klm a_k a_m
+    Mat36 Ca = Mat36::Zero();                     // column lm: sum_k C_klm a_k
     for (int kl = 0; kl < 6; ++kl) {
-      const int kk = kK[kl], ll = kL[kl];
-      Haa += kMult[kl] * a[kk] * a[ll] * Hp.col(kl);
+      const int kk = kPairs[kl][0], ll = kPairs[kl][1];
+      Haa += kPairMult[kl] * a[kk] * a[ll] * Hp.col(kl);
       Ha.col(ll) += a[kk] * Hp.col(kl);
       if (kk != ll) Ha.col(kk) += a[ll] * Hp.col(kl);
     }
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        for (int l = 0; l < 3; ++l) {
+          const auto col = Cp.col(triple_index(i, j, l));
+          Caaa += a[i] * a[j] * a[l] * col;
+          Caa.col(l) += a[i] * a[j] * col;
+          if (j <= l) Ca.col(pair_index(j, l)) += a[i] * col;
+        }
     double* rc = acc + size_t(c) * kAcc;
-    Eigen::Map<Vec3>(rc) += Gp - Jp * a + 0.5 * Haa;
-    Eigen::Map<Mat3>(rc + 3) += Jp - Ha;
-    Eigen::Map<Mat36>(rc + 12) += Hp;
+    Eigen::Map<Vec3>(rc) += Gp - Jp * a + 0.5 * Haa - Caaa / 6;
+    Eigen::Map<Mat3>(rc + 3) += Jp - Ha + 0.5 * Caa;
+    Eigen::Map<Mat36>(rc + 12) += Hp - Ca;
+    Eigen::Map<Mat310>(rc + 30) += Cp;
   }
   if (nd.end - nd.begin >= kParallelPatches)
     tbb::parallel_invoke([&] { push(d, acc, nd.left); }, [&] { push(d, acc, nd.right); });
@@ -179,13 +219,15 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
       }
     }
   });
-  // Leaves: n_i . (g + H : M_i / 2) (the patch's own extent) plus the exact entries, both directions.
+  // Leaves: n_i . (g + H : M_i / 2 - C : M3_i / 6) (the patch's own extent) plus the exact entries, both directions.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
       const double* ri = acc + size_t(d.leaf_of[i]) * kAcc;
       Vec3 gi = Eigen::Map<const Vec3>(ri);
       const Eigen::Map<const Mat36> H(ri + 12);
-      for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kMult[kl] * P.M[i][kl] * H.col(kl);
+      const Eigen::Map<const Mat310> C(ri + 30);
+      for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kPairMult[kl] * P.M[i][kl] * H.col(kl);
+      for (int q = 0; q < 10; ++q) gi -= kTripleMult[q] / 6 * P.M3[i][q] * C.col(q);
       double s = g.normal[i].dot(gi);
       for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) s += d.leaf_F[e] * x[d.leaf_src[e]];
       double in = 0;

@@ -105,6 +105,7 @@ struct PatchData {
   std::vector<double> offset;        // n . c
   std::vector<double> eps;           // plane classification tolerance (relative to scene size)
   std::vector<std::array<double, 6>> M;  // second-moment tensor / area about c: xx yy zz xy xz yz
+  std::vector<std::array<double, 10>> M3;  // third moments / area about c, batch.hpp's kTriples (0: parallelograms)
   std::vector<std::uint8_t> kind;    // 0 = triangle, 1 = parallelogram, 2 = convex quad, 3 = general polygon
   // Outer rules: for m = 2, 3, 4 points per side, patch p: points [rule_off[m][p], rule_off[m][p+1]) in
   // rule_pts[m] (larger m are mapped per pair from reference rules).

@@ -4,6 +4,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "batch.hpp"
 #include "internal.hpp"
 #include "lambert/formfactor/kernel.hpp"
 
@@ -154,6 +155,7 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
   P.rerr.resize(n);
   P.offset.resize(n);
   P.M.resize(n);
+  P.M3.resize(n);
   P.kind.resize(n);
   // Relative to the scene's size (bounding-box diagonal), not to |coordinates|: translation invariant.
   Eigen::AlignedBox3d box;
@@ -189,6 +191,22 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
     }
     for (double& v : M) v /= g.area[p];
     P.M[p] = M;
+    // Third moments about the centroid: per triangle (A/60)(s_k s_l s_m + sum_v (v_k v_l s_m + v_k s_l v_m +
+    // s_k v_l v_m + 2 v_k v_l v_m)) (the integrals of products of barycentric coordinates: A/10, A/30, A/60).
+    std::array<double, 10> M3{};
+    for (const auto& t : local) {
+      const Vec3 v[3] = {poly[t[0]] - c, poly[t[1]] - c, poly[t[2]] - c};
+      const Vec3 s = v[0] + v[1] + v[2];
+      const double At = 0.5 * (v[1] - v[0]).cross(v[2] - v[0]).dot(g.normal[p]);
+      for (int q = 0; q < 10; ++q) {
+        const int i = kTriples[q][0], j = kTriples[q][1], k = kTriples[q][2];
+        double sum = s[i] * s[j] * s[k];
+        for (const Vec3& w : v) sum += w[i] * w[j] * s[k] + w[i] * s[j] * w[k] + s[i] * w[j] * w[k] + 2 * w[i] * w[j] * w[k];
+        M3[size_t(q)] += sum * At / 60;
+      }
+    }
+    for (double& v : M3) v /= g.area[p];
+    P.M3[p] = M3;
     {
       Eigen::Matrix3d S;
       S << M[0], M[3], M[4], M[3], M[1], M[5], M[4], M[5], M[2];
