@@ -2,141 +2,156 @@
 """Writes formfactor/src/isa/far_field3.inc: the third-order far-field expansion of the hierarchy's far links.
 
 The hierarchical operator (formfactor/src/hierarchy_apply.cpp) sums, for a receiver point at offset a from its
-cluster's centre and the source points at offsets b from theirs (u = c_B - c_A between the centres),
-    h(a) = sum_b K(u + b - a) v_b,   K(r) = -r r^T / (pi |r|^4),   v_b = A_b x_b n_b,
-expanded in b and a to total order 3. With d = b - a, s = |u|^2 and phi_m the m-th derivative of
-phi(s) = 1 / (pi s^2), the kernel is -(u + d) ((u + d).v) phi(s + 2 u.d + d.d), whose terms of order k in d are
-    h_k = -[u (u.v) Phi_k + (u (d.v) + d (u.v)) Phi_{k-1} + d (d.v) Phi_{k-2}],
-    Phi_0 = phi_0, Phi_1 = 2 phi_1 (u.d), Phi_2 = phi_1 |d|^2 + 2 phi_2 (u.d)^2,
-    Phi_3 = 2 phi_2 (u.d) |d|^2 + 4/3 phi_3 (u.d)^3.
-Summed over the source points, the powers of b become the source's moments
-    V = sum v, W(:, k) = sum v b_k, T(:, kl) = sum v b_k b_l, U(:, klm) = sum v b_k b_l b_m,
-and the powers of a the receiver's local expansion h(a) = sum_p L_p[(-a)^p] / p!:
-    g = L_0 (3), J = L_1 (3 x 3), H = L_2 (3 x 6: xx yy zz xy xz yz), C = L_3 (3 x 10, kTriples' order).
-The expressions are simplified by common subexpressions (sympy's cse) and written as straight-line code over a
-vector type. Needs python3-sympy (Debian); the project builds from the generated file, which is committed.
+cluster's centre and source points at offsets b from theirs (u = c_B - c_A between the centres),
+    h(a) = sum_b K(u + b - a) v_b,   K(r) = -r r^T phi(|r|^2),   phi(s) = 1 / (pi s^2),   v_b = A_b x_b n_b,
+expanded in b and a to total order 3: h(a) = sum_p L_p[(-a)^p] / p!, with
+    L_p[A] = sum_{q <= 3 - p} sum_B D[A + B] m_q[B] / q!   (B over all index tuples of length q),
+D the derivatives of the kernel at u and m_q the source's moments (sum v b^q). Symmetric index tuples are stored
+once, in TUP's order (0: (); 1-3: x y z; 4-9: xx yy zz xy xz yz; 10-19: xxx yyy zzz xxy xxz xyy yyz xzz yzz xyz),
+so a sum over B takes each stored tuple times its multiplicity.
+
+Two kernels:
+  far_flat3:   both clusters flat (receiver normal n, source normal w): the scalar kernel -(n.r)(w.r) phi, scalar
+               moments s[t] = sum A x b^t, scalar outputs o[t] (20 each);
+  far_vector3: any clusters: the 3 x 3 kernel, vector moments m[3 t + i] = sum A x n_i b^t and outputs o[3 t + r]
+               (60 each).
+The derivatives of -(P Q) phi with P = n.r, Q = w.r linear, by Leibniz:
+    D_t = -(P Q C_t + sum_j E[t_j] C[t - j] + sum_{j<k} F[t_j t_k] C[t - j - k]),
+    E_k = n_k Q + P w_k,   F_kl = n_k w_l + n_l w_k,
+with C the derivatives of phi(|u|^2) (ph[m] = the m-th derivative of phi at |u|^2):
+    C_k = 2 ph1 u_k,   C_kl = 2 ph1 delta_kl + 4 ph2 u_k u_l,
+    C_klm = 4 ph2 (delta_kl u_m + delta_km u_l + delta_lm u_k) + 8 ph3 u_k u_l u_m;
+the vector kernel's entry (r, i) is the scalar one with n = e_r, w = e_i. This script writes that as straight-line
+code over a vector type (tests/test_hierarchy_gather.cpp checks it against the kernel summed directly).
 Usage: python3 scripts/gen_far_field3.py > formfactor/src/isa/far_field3.inc
 """
 import sys
 from collections import Counter
 from math import factorial
 
-import sympy as sp
-
-PAIRS = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
-TRIPLES = [(0, 0, 0), (1, 1, 1), (2, 2, 2), (0, 0, 1), (0, 0, 2), (0, 1, 1), (1, 1, 2), (0, 2, 2), (1, 2, 2), (0, 1, 2)]
-TUPLES = [[()], [(0,), (1,), (2,)], PAIRS, TRIPLES]
-OFFSET = [0, 3, 12, 30]  # where each order starts in the moments m[] and in the outputs o[]
-ORDER = 3
-
-
+TUP=[()]+[(k,) for k in range(3)]+[(0,0),(1,1),(2,2),(0,1),(0,2),(1,2)]+[(0,0,0),(1,1,1),(2,2,2),(0,0,1),(0,0,2),(0,1,1),(1,1,2),(0,2,2),(1,2,2),(0,1,2)]
+ID={t:i for i,t in enumerate(TUP)}
+def tid(t): return ID[tuple(sorted(t))]
 def mult(t):
-    c = Counter(t)
-    m = factorial(len(t))
-    for x in c.values():
-        m //= factorial(x)
+    c=Counter(t); m=factorial(len(t))
+    for x in c.values(): m//=factorial(x)
     return m
-
-
-u = sp.symbols("u0:3")
-a = sp.symbols("a0:3")
-b = sp.symbols("b0:3")
-v = sp.symbols("v0:3")
-ph = sp.symbols("ph0:4")
-m = sp.symbols("m0:60")
-
-
-def moment(i, bt):
-    q = len(bt)
-    return m[OFFSET[q] + 3 * TUPLES[q].index(bt) + i]
-
-
-def expansion():
-    d = [b[k] - a[k] for k in range(3)]
-    ud = sum(u[k] * d[k] for k in range(3))
-    dd = sum(x * x for x in d)
-    uv = sum(u[k] * v[k] for k in range(3))
-    dv = sum(d[k] * v[k] for k in range(3))
-    Phi = [ph[0], 2 * ph[1] * ud, ph[1] * dd + 2 * ph[2] * ud**2,
-           2 * ph[2] * ud * dd + sp.Rational(4, 3) * ph[3] * ud**3]
-    h = []
-    for row in range(3):
-        t = 0
-        for k in range(ORDER + 1):
-            t += u[row] * uv * Phi[k]
-            if k >= 1:
-                t += (u[row] * dv + d[row] * uv) * Phi[k - 1]
-            if k >= 2:
-                t += d[row] * dv * Phi[k - 2]
-        h.append(sp.Poly(sp.expand(-t), *a))
-    outs = []
-    for p in range(ORDER + 1):
-        for at in TUPLES[p]:
-            for row in range(3):
-                alpha = tuple(at.count(k) for k in range(3))
-                c = h[row].as_dict().get(alpha, 0)
-                L = sp.expand(c * factorial(p) * (-1) ** p / mult(at))  # h's monomial a^alpha has L_p's entry x this
-                acc = 0
-                if L != 0:
-                    P = sp.Poly(L, *b, *v)
-                    for mon, co in zip(P.monoms(), P.coeffs()):
-                        bt = tuple(sorted(sum([[k] * mon[k] for k in range(3)], [])))
-                        acc += co * moment(mon[3:].index(1), bt)
-                outs.append(acc)
-    return outs
-
-
-def c_expr(e, names):
-    """C++ for a sympy expression over the vector type: integer powers as products, rationals as doubles."""
-    if e in names:
-        return names[e]
-    if e.is_Number:
-        return repr(float(e))
-    if e.is_Add:
-        terms = [c_expr(t, names) for t in e.args]
-        s = terms[0]
-        for t in terms[1:]:
-            s += " - " + t[1:] if t.startswith("-") else " + " + t
-        return "(" + s + ")"
-    if e.is_Mul:
-        coeff, rest = e.as_coeff_Mul()
-        factors = [c_expr(f, names) for f in sp.Mul.make_args(rest)]
-        body = " * ".join(factors)
-        if coeff == 1:
-            return body
-        if coeff == -1:
-            return "-" + body if len(factors) > 1 or not body.startswith("(") else "-" + body
-        return repr(float(coeff)) + " * " + body
-    if e.is_Pow and e.exp.is_Integer and e.exp > 0:
-        base = c_expr(e.base, names)
-        return " * ".join([base] * int(e.exp))
-    raise ValueError(f"cannot print {e}")
+def lin(terms):
+    """terms: list of (coeff, [factors]) -> C++ sum, folding coefficient 1 / -1 and merging repeated terms."""
+    merged={}
+    order=[]
+    for c,f in terms:
+        key=tuple(f)
+        if key not in merged: order.append(key); merged[key]=0
+        merged[key]+=c
+    terms=[(merged[k],list(k)) for k in order]
+    out=[]
+    for c,f in terms:
+        if c==0: continue
+        body=" * ".join(f)
+        if c==1: s=body
+        elif c==-1: s="-"+body
+        else: s=f"{float(c)!r} * {body}" if body else repr(float(c))
+        out.append(s)
+    if not out: return "V{}"
+    r=out[0]
+    for s in out[1:]: r+= (" - "+s[1:]) if s.startswith("-") else (" + "+s)
+    return r
+def emit_C(L):
+    # phi derivative tensor C[t] at u
+    L.append("  const V c0 = ph[0];")
+    for k in range(3): L.append(f"  const V c{tid((k,))} = 2.0 * ph[1] * u[{k}];")
+    L.append("  const V p1x2 = 2.0 * ph[1], p2x4 = 4.0 * ph[2], p3x8 = 8.0 * ph[3];")
+    for t in TUP[4:10]:
+        k,l=t
+        L.append(f"  const V c{tid(t)} = " + (f"p1x2 + p2x4 * u[{k}] * u[{l}];" if k==l else f"p2x4 * u[{k}] * u[{l}];"))
+    for t in TUP[10:]:
+        k,l,m=t
+        lin_=Counter()
+        if k==l: lin_[m]+=1
+        if k==m: lin_[l]+=1
+        if l==m: lin_[k]+=1
+        s=" + ".join((f"{float(c)!r} * u[{i}]" if c!=1 else f"u[{i}]") for i,c in sorted(lin_.items()))
+        expr=f"p3x8 * u[{k}] * u[{l}] * u[{m}]"
+        if s: expr=f"p2x4 * ({s}) + "+expr
+        L.append(f"  const V c{tid(t)} = {expr};")
+def remove(t, js):
+    return tuple(x for i,x in enumerate(t) if i not in js)
+def D_terms(t, P, Q, E, F):
+    """-(P Q C_t + sum_j E[t_j] C_{t-j} + sum_{j<k} F[t_j t_k] C_{t-jk}); P,Q,E,F: factor strings or None (zero)."""
+    terms=[]
+    if P and Q: terms.append((-1,[P,Q,f"c{tid(t)}"]) if P!="1" and Q!="1" else (-1,[x for x in (P,Q) if x!="1"]+[f"c{tid(t)}"]))
+    for j in range(len(t)):
+        e=E[t[j]]
+        if e: terms.append((-1,([e] if e!="1" else [])+[f"c{tid(remove(t,{j}))}"]))
+    for j in range(len(t)):
+        for k in range(j+1,len(t)):
+            f=F[tuple(sorted((t[j],t[k])))]
+            if f: 
+                if isinstance(f,int): terms.append((-f,[f"c{tid(remove(t,{j,k}))}"]))
+                else: terms.append((-1,[f,f"c{tid(remove(t,{j,k}))}"]))
+    return terms
+def contraction_entries():
+    """(A, t_D, B, coeff): L[A] += coeff D[t_D] m[B]."""
+    ent=[]
+    for A in TUP:
+        for B in TUP:
+            if len(A)+len(B)>3: continue
+            ent.append((ID[A], tid(A+B), ID[B], mult(B)/factorial(len(B))))
+    return ent
+def flat_kernel():
+    L=["template <class V>","inline void far_flat3(const V* u, const V* ph, const V* n, const V* w, const V* s, V* o) {"]
+    emit_C(L)
+    L.append("  const V P = n[0] * u[0] + n[1] * u[1] + n[2] * u[2], Q = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];")
+    L.append("  const V PQ = P * Q;")
+    for k in range(3): L.append(f"  const V e{k} = n[{k}] * Q + P * w[{k}];")
+    for (k,l) in TUP[4:10]:
+        L.append(f"  const V f{k}{l} = " + (f"2.0 * n[{k}] * w[{k}];" if k==l else f"n[{k}] * w[{l}] + n[{l}] * w[{k}];"))
+    E={k:f"e{k}" for k in range(3)}; F={p:f"f{p[0]}{p[1]}" for p in TUP[4:10]}
+    for t in TUP:
+        terms=[(-1,["PQ",f"c{tid(t)}"])]+D_terms(t,None,None,E,F)
+        L.append(f"  const V d{ID[t]} = {lin(terms)};")
+    acc={}
+    for A,td,B,c in contraction_entries():
+        acc.setdefault(A,[]).append((c,[f"d{td}",f"s[{B}]"]))
+    for A in range(20): L.append(f"  o[{A}] = {lin(acc[A])};")
+    L.append("}")
+    return L
+def vector_kernel():
+    L=["template <class V>","inline void far_vector3(const V* u, const V* ph, const V* m, V* o) {"]
+    emit_C(L)
+    for r in range(3):
+        for i in range(r,3):
+            # n = e_r, w = e_i: P = u_r, Q = u_i, E_k = delta_rk u_i + u_r delta_ik, F_kl = d_rk d_il + d_rl d_ik
+            for t in TUP:
+                terms=[(-1,[f"u[{r}]",f"u[{i}]",f"c{tid(t)}"])]
+                for j in range(len(t)):
+                    kk=t[j]; rest=f"c{tid(remove(t,{j}))}"
+                    if kk==r: terms.append((-1,[f"u[{i}]",rest]))
+                    if kk==i: terms.append((-1,[f"u[{r}]",rest]))
+                for j in range(len(t)):
+                    for k in range(j+1,len(t)):
+                        a,b=t[j],t[k]
+                        cnt=(a==r and b==i)+(a==i and b==r)
+                        if cnt: terms.append((-cnt,[f"c{tid(remove(t,{j,k}))}"]))
+                L.append(f"  const V d{r}{i}_{ID[t]} = {lin(terms)};")
+    acc={}
+    for A,td,B,c in contraction_entries():
+        for r in range(3):
+            for i in range(3):
+                a,b=min(r,i),max(r,i)
+                acc.setdefault((A,r),[]).append((c,[f"d{a}{b}_{td}",f"m[{3*B+i}]"]))
+    for A in range(20):
+        for r in range(3): L.append(f"  o[{3*A+r}] = {lin(acc[(A,r)])};")
+    L.append("}")
+    return L
 
 
 def main():
-    outs = expansion()
-    repl, red = sp.cse(outs, symbols=sp.numbered_symbols("t"))
-    names = {}
-    for k in range(3):
-        names[u[k]] = f"u[{k}]"
-    for k in range(4):
-        names[ph[k]] = f"ph[{k}]"
-    for k in range(60):
-        names[m[k]] = f"m[{k}]"
-    lines = []
-    for sym, expr in repl:
-        lines.append(f"  const V {sym} = {c_expr(expr, names)};")
-        names[sym] = str(sym)
-    for k, expr in enumerate(red):
-        lines.append(f"  o[{k}] = {c_expr(expr, names) if expr != 0 else 'V{}'};")
     w = sys.stdout.write
-    w("// Generated by scripts/gen_far_field3.py: do not edit. The third-order far-field expansion of one far link\n")
-    w("// (see the script's header): from u = c_B - c_A, ph[m] = the m-th derivative of 1 / (pi s^2) at s = |u|^2 and\n")
-    w("// the source's moments m[0..59] (V 3, W 3 x 3, T 3 x 6, U 3 x 10, column-major: W(i, k) = m[3 + 3 k + i]),\n")
-    w("// the receiver's local expansion o[0..59] (g 3, J 3 x 3, H 3 x 6, C 3 x 10, column-major likewise).\n")
-    w("template <class V>\n")
-    w("inline void far_expansion3(const V* u, const V* ph, const V* m, V* o) {\n")
-    w("\n".join(lines) + "\n}\n")
+    w("// Generated by scripts/gen_far_field3.py: do not edit. The third-order far-field expansion of one far link (see\n")
+    w("// the script's header): u = c_B - c_A, ph[m] = the m-th derivative of 1 / (pi s^2) at s = |u|^2.\n")
+    w("\n".join(flat_kernel()) + "\n\n" + "\n".join(vector_kernel()) + "\n")
 
 
 if __name__ == "__main__":

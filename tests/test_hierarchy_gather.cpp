@@ -34,19 +34,23 @@ Vec3 unit(std::mt19937& rng) {
   return v.normalized();
 }
 
-Cluster random_cluster(std::mt19937& rng, const Vec3& c, double size, int count) {
+// count points within size of c; flat: in the plane through c normal to `normal`, all with that normal.
+Cluster random_cluster(std::mt19937& rng, const Vec3& c, double size, int count, const Vec3* normal = nullptr) {
   std::uniform_real_distribution<double> U(-1, 1), Uw(0.2, 1);
   Cluster k{c, {}, {}, {}};
   for (int j = 0; j < count; ++j) {
-    k.b.push_back(size * Vec3(U(rng), U(rng), U(rng)));
-    k.n.push_back(unit(rng));
+    Vec3 b = size * Vec3(U(rng), U(rng), U(rng));
+    if (normal) b -= normal->dot(b) * *normal;
+    k.b.push_back(b);
+    k.n.push_back(normal ? *normal : unit(rng));
     k.w.push_back(Uw(rng));
   }
   return k;
 }
 
 // The record gather_links reads: centre, V = sum w n, W = sum w n b^T, T(:, kl) = sum w n b_k b_l,
-// U(:, klm) = sum w n b_k b_l b_m (column-major).
+// U(:, klm) = sum w n b_k b_l b_m (column-major), then (for gather_links_flat) the first point's normal as the axis
+// and the scalar moments sum w b^t.
 std::array<double, fd::kMomentRecord> record(const Cluster& k) {
   std::array<double, fd::kMomentRecord> r{};
   for (int i = 0; i < 3; ++i) r[size_t(i)] = k.c[i];
@@ -59,7 +63,14 @@ std::array<double, fd::kMomentRecord> record(const Cluster& k) {
       for (int q = 0; q < 10; ++q)
         r[size_t(33 + 3 * q + i)] += v[i] * k.b[j][kTriples[q][0]] * k.b[j][kTriples[q][1]] * k.b[j][kTriples[q][2]];
     }
+    double* sm = r.data() + fd::kRecScalar;
+    sm[0] += k.w[j];
+    for (int i = 0; i < 3; ++i) sm[1 + i] += k.w[j] * k.b[j][i];
+    for (int kl = 0; kl < 6; ++kl) sm[4 + kl] += k.w[j] * k.b[j][kPairs[kl][0]] * k.b[j][kPairs[kl][1]];
+    for (int q = 0; q < 10; ++q)
+      sm[10 + q] += k.w[j] * k.b[j][kTriples[q][0]] * k.b[j][kTriples[q][1]] * k.b[j][kTriples[q][2]];
   }
+  for (int i = 0; i < 3; ++i) r[size_t(fd::kRecAxis + i)] = k.n[0][i];
   return r;
 }
 
@@ -75,9 +86,10 @@ double direct(const std::vector<Cluster>& src, const std::vector<float>& vis, co
   return s;
 }
 
-// n . (g - J a + H[a, a] / 2 - C[a, a, a] / 6) from gather_links' output about the receiver centre ca, at x = ca + a.
+// n . (g - J a + H[a, a] / 2 - C[a, a, a] / 6) from gather_links' output about the receiver centre ca, at x = ca + a
+// (flat: the same from gather_links_flat's scalar record, with n as the receiver's axis).
 double expanded(const fd::BatchKernels& K, const std::vector<Cluster>& src, const std::vector<float>& vis,
-                const Vec3& ca, const Vec3& a, const Vec3& n) {
+                const Vec3& ca, const Vec3& a, const Vec3& n, bool flat = false) {
   std::vector<double> rec;
   std::vector<int> idx;
   for (size_t e = 0; e < src.size(); ++e) {
@@ -85,18 +97,22 @@ double expanded(const fd::BatchKernels& K, const std::vector<Cluster>& src, cons
     rec.insert(rec.end(), r.begin(), r.end());
     idx.push_back(int(e));
   }
+  const int R = flat ? 1 : 3;  // rows per index tuple
   double out[fd::kLocalRecord] = {};
-  K.gather_links(rec.data(), ca.data(), idx.data(), vis.data(), (long long)src.size(), out);
-  Vec3 G(out[0], out[1], out[2]);
-  for (int col = 0; col < 3; ++col)
-    for (int row = 0; row < 3; ++row) G[row] -= out[3 + 3 * col + row] * a[col];
-  for (int kl = 0; kl < 6; ++kl)
-    for (int row = 0; row < 3; ++row)
-      G[row] += 0.5 * kPairMult[kl] * a[kPairs[kl][0]] * a[kPairs[kl][1]] * out[12 + 3 * kl + row];
-  for (int q = 0; q < 10; ++q)
-    for (int row = 0; row < 3; ++row)
-      G[row] -= kTripleMult[q] / 6 * a[kTriples[q][0]] * a[kTriples[q][1]] * a[kTriples[q][2]] * out[30 + 3 * q + row];
-  return n.dot(G);
+  if (flat)
+    K.gather_links_flat(rec.data(), ca.data(), n.data(), idx.data(), vis.data(), (long long)src.size(), out);
+  else
+    K.gather_links(rec.data(), ca.data(), idx.data(), vis.data(), (long long)src.size(), out);
+  Eigen::Vector3d G = Eigen::Vector3d::Zero();
+  for (int row = 0; row < R; ++row) {
+    G[row] = out[row];
+    for (int col = 0; col < 3; ++col) G[row] -= out[R * (1 + col) + row] * a[col];
+    for (int kl = 0; kl < 6; ++kl)
+      G[row] += 0.5 * kPairMult[kl] * a[kPairs[kl][0]] * a[kPairs[kl][1]] * out[R * (4 + kl) + row];
+    for (int q = 0; q < 10; ++q)
+      G[row] -= kTripleMult[q] / 6 * a[kTriples[q][0]] * a[kTriples[q][1]] * a[kTriples[q][2]] * out[R * (10 + q) + row];
+  }
+  return flat ? G[0] : n.dot(G);
 }
 
 using batchtest::supported_kernels;
@@ -107,45 +123,50 @@ using batchtest::supported_kernels;
 // of the two errors below 1/11 (1/16 in the limit, 1/8 for a wrong third-order term), and the error at s = 0.02
 // below 2e-6 relative (fourth order: (0.02 * sqrt 3 * 2)^4 ~ 1.8e-5 times the expansion's small coefficients,
 // summed over 13 links of either sign).
+// Both kernels: any clusters (gather_links) and flat ones (gather_links_flat: points in a plane, one normal; the
+// receiver point in its plane).
 TEST(HierarchyGather, ExpansionErrorFallsWithTheFourthPowerOfTheClusterSize) {
-  for (const fd::BatchKernels* K : supported_kernels()) {
-    double err[2] = {0, 0}, scale = 0;
-    for (int trial = 0; trial < 20; ++trial) {
-      for (int h = 0; h < 2; ++h) {
-        const double s = h == 0 ? 0.04 : 0.02;
-        std::mt19937 rng(1000 + trial);  // the same configuration at both sizes
-        const Vec3 ca(0.3, -0.2, 0.5);
-        std::vector<Cluster> src;
-        std::vector<float> vis;
-        std::uniform_real_distribution<double> Uv(0.1, 1.0);
-        for (int e = 0; e < 13; ++e) {
-          src.push_back(random_cluster(rng, ca + unit(rng), s, 6));
-          vis.push_back(float(Uv(rng)));
+  for (const fd::BatchKernels* K : supported_kernels())
+    for (const bool flat : {false, true}) {
+      double err[2] = {0, 0};
+      for (int trial = 0; trial < 20; ++trial) {
+        for (int h = 0; h < 2; ++h) {
+          const double s = h == 0 ? 0.04 : 0.02;
+          std::mt19937 rng(1000 + trial);  // the same configuration at both sizes
+          const Vec3 ca(0.3, -0.2, 0.5);
+          const Vec3 n = unit(rng);
+          std::vector<Cluster> src;
+          std::vector<float> vis;
+          std::uniform_real_distribution<double> Uv(0.1, 1.0);
+          for (int e = 0; e < 13; ++e) {
+            const Vec3 dir = unit(rng), w = unit(rng);
+            src.push_back(random_cluster(rng, ca + dir, s, 6, flat ? &w : nullptr));
+            vis.push_back(float(Uv(rng)));
+          }
+          std::uniform_real_distribution<double> U(-1, 1);
+          Vec3 a = s * Vec3(U(rng), U(rng), U(rng));
+          if (flat) a -= n.dot(a) * n;
+          const double want = direct(src, vis, ca + a, n), got = expanded(*K, src, vis, ca, a, n, flat);
+          double mag = 0;  // the sum of the terms' magnitudes: the scale of the error
+          for (size_t e = 0; e < src.size(); ++e)
+            for (size_t j = 0; j < src[e].b.size(); ++j) mag += src[e].w[j] * vis[e] / kPi;
+          err[h] += std::abs(got - want) / mag;
+          if (!(std::abs(got - want) / mag < 1e-3))
+            ADD_FAILURE() << K->name << (flat ? " flat" : "") << " trial " << trial << " size " << s
+                          << ": expansion " << got << " direct " << want;
         }
-        std::uniform_real_distribution<double> U(-1, 1);
-        const Vec3 a = s * Vec3(U(rng), U(rng), U(rng));
-        const Vec3 n = unit(rng);
-        const double want = direct(src, vis, ca + a, n), got = expanded(*K, src, vis, ca, a, n);
-        double mag = 0;  // the sum of the terms' magnitudes: the scale of the error
-        for (size_t e = 0; e < src.size(); ++e)
-          for (size_t j = 0; j < src[e].b.size(); ++j) mag += src[e].w[j] * vis[e] / kPi;
-        err[h] += std::abs(got - want) / mag;
-        if (h == 1) scale += mag;
-        if (!(std::abs(got - want) / mag < 1e-3))
-          ADD_FAILURE() << K->name << " trial " << trial << " size " << s << ": expansion " << got << " direct "
-                        << want;
       }
+      const double ratio = err[1] / err[0];
+      std::printf("%s%s: mean relative error %.3e at s = 0.04, %.3e at s = 0.02, ratio %.4f (1/16 = 0.0625)\n",
+                  K->name, flat ? " flat" : "", err[0] / 20, err[1] / 20, ratio);
+      EXPECT_LT(ratio, 1 / 11.0) << K->name << (flat ? " flat" : "") << ": errors " << err[0] / 20 << " and "
+                                 << err[1] / 20;
+      EXPECT_LT(err[1] / 20, 2e-6) << K->name << (flat ? " flat" : "");
     }
-    const double ratio = err[1] / err[0];
-    std::printf("%s: mean relative error %.3e at s = 0.04, %.3e at s = 0.02, ratio %.4f (1/16 = 0.0625)\n", K->name,
-                err[0] / 20, err[1] / 20, ratio);
-    EXPECT_LT(ratio, 1 / 11.0) << K->name << ": errors " << err[0] / 20 << " and " << err[1] / 20;
-    EXPECT_LT(err[1] / 20, 2e-6) << K->name;
-  }
 }
 
 // Every instruction set gives the generic kernel's sums to rounding (1e-12 relative to the largest output): the
-// same expression compiled three times, FMA contraction the only difference. 1 to 40 links per call.
+// same expression compiled three times, FMA contraction the only difference. 1 to 40 links per call, both kernels.
 TEST(HierarchyGather, SameOnEveryInstructionSet) {
   const auto kernels = supported_kernels();
   std::mt19937 rng(5);
@@ -162,17 +183,27 @@ TEST(HierarchyGather, SameOnEveryInstructionSet) {
     std::vector<int> src;
     std::vector<float> vis;
     for (int e = 0; e < count; ++e) src.push_back(Ub(rng)), vis.push_back(float(Uv(rng)));
-    const Vec3 ca(0.05, -0.02, 0.01);
-    double ref[fd::kLocalRecord] = {};
-    kernels[0]->gather_links(rec.data(), ca.data(), src.data(), vis.data(), count, ref);
-    double big = 0;
-    for (double v : ref) big = std::max(big, std::abs(v));
-    ASSERT_GT(big, 0) << "count " << count;
-    for (size_t k = 1; k < kernels.size(); ++k) {
-      double out[fd::kLocalRecord] = {};
-      kernels[k]->gather_links(rec.data(), ca.data(), src.data(), vis.data(), count, out);
-      for (int c = 0; c < fd::kLocalRecord; ++c)
-        EXPECT_NEAR(out[c], ref[c], 1e-12 * big) << kernels[k]->name << " count " << count << " output " << c;
+    const Vec3 ca(0.05, -0.02, 0.01), na = Vec3(0.3, -0.5, 0.8).normalized();
+    for (const bool flat : {false, true}) {  // (flat: the records' axes and scalar moments as if flat)
+      auto run = [&](const fd::BatchKernels& K, double* out) {
+        if (flat)
+          K.gather_links_flat(rec.data(), ca.data(), na.data(), src.data(), vis.data(), count, out);
+        else
+          K.gather_links(rec.data(), ca.data(), src.data(), vis.data(), count, out);
+      };
+      const int outputs = flat ? fd::kTuples : fd::kLocalRecord;
+      double ref[fd::kLocalRecord] = {};
+      run(*kernels[0], ref);
+      double big = 0;
+      for (double v : ref) big = std::max(big, std::abs(v));
+      ASSERT_GT(big, 0) << "count " << count;
+      for (size_t k = 1; k < kernels.size(); ++k) {
+        double out[fd::kLocalRecord] = {};
+        run(*kernels[k], out);
+        for (int c = 0; c < outputs; ++c)
+          EXPECT_NEAR(out[c], ref[c], 1e-12 * big)
+              << kernels[k]->name << (flat ? " flat" : "") << " count " << count << " output " << c;
+      }
     }
   }
 }

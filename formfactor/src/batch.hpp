@@ -49,12 +49,17 @@ struct BatchKernels {
                     const double* err, int err_stride, double* row_i, double* row_j, double* err_i, double* err_j,
                     long long* outside, long long* roundoff);
   // The far links of one receiver cluster in the hierarchy's product (hierarchy_apply.cpp): out[0..59] += the
-  // third-order expansion's local record (g, J, H, C) about the receiver's centre ca (g: 3, J: 3 x 3, H: 3 x 6,
-  // C: 3 x 10, column-major) summed over the links e < count in order of lanes, source node src[e] with visible
-  // fraction vis[e]. rec holds kMomentRecord doubles per node: its centre (m), then V (3), W (3 x 3), T (3 x 6) and
-  // U (3 x 10) of its moments, column-major (scripts/gen_far_field3.py). Centres of a link's two nodes must differ.
+  // third-order expansion's local record about the receiver's centre ca (o[3 t + r] for the index tuples t of
+  // kTuples: g, J, H, C) summed over the links e < count in order of lanes, source node src[e] with visible
+  // fraction vis[e]. rec holds kMomentRecord doubles per node (kRec* offsets): its centre (m), its vector moments
+  // m[3 t + i] = sum A x n_i b^t, and for flat nodes their axis and scalar moments s[t] = sum A x b^t
+  // (scripts/gen_far_field3.py). Centres of a link's two nodes must differ.
   void (*gather_links)(const double* rec, const double* ca, const int* src, const float* vis, long long count,
                        double* out);
+  // The same for a flat receiver (axis na) and flat sources: out[0..19] += the scalar local record o[t] (the vector
+  // one dotted with na) from the sources' axes and scalar moments.
+  void (*gather_links_flat)(const double* rec, const double* ca, const double* na, const int* src, const float* vis,
+                            long long count, double* out);
   // The near-pair contour's inner integral (contour.cpp) at count points of an edge: out[k] = int_0^1
   // ln |w0 + s[k] u - t v| dt, v of length L > 0 (inv_L = 1 / L), in closed form. w0, u, v: 3 doubles each.
   void (*edge_log)(const double* w0, const double* u, const double* v, double L, double inv_L, const double* s,
@@ -63,9 +68,12 @@ struct BatchKernels {
   // normal n (kernel.hpp's signed_contour_sum: signed, no 1/2pi), its edges in the lanes.
   double (*contour_sum)(const double* x, const double* n, const double* poly, int m);
 };
-constexpr int kMomentRecord = 63;  // per node: centre 3, V 3, W 9, T 18, U 30
-constexpr int kLocalRecord = 60;   // per node: g 3, J 9, H 18, C 30
-// Symmetric index pairs (xx yy zz xy xz yz) and triples of the moments and expansions, with their multiplicities.
+// A node's moment record: centre, vector moments (3 per index tuple), axis and scalar moments (1 per tuple).
+constexpr int kRecVector = 3, kRecAxis = 63, kRecScalar = 66, kMomentRecord = 86;
+constexpr int kLocalRecord = 60;  // a receiver's local record: 3 per index tuple (kTuples)
+// Symmetric index tuples up to length 3 in the far field's order (scripts/gen_far_field3.py's TUP): (), x y z, then
+// the pairs and triples below, with their multiplicities.
+constexpr int kTuples = 20;
 constexpr int kPairs[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
 constexpr int kTriples[10][3] = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {0, 0, 1}, {0, 0, 2},
                                  {0, 1, 1}, {1, 1, 2}, {0, 2, 2}, {1, 2, 2}, {0, 1, 2}};

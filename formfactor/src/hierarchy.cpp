@@ -261,8 +261,9 @@ class Chunked {
 
 // Rows [0, rows) of a CSR (off, src, val) in the order the records came: each row's entries sorted by source
 // (a link's two nodes or patches are one pair only once, so the order is unique: the same for any thread count).
-template <class V>
-void sort_rows(const std::vector<std::int64_t>& off, std::vector<int>& src, std::vector<V>& val) {
+// first(s) true comes before false (the hierarchy's flat sources before the others).
+template <class V, class First>
+void sort_rows(const std::vector<std::int64_t>& off, std::vector<int>& src, std::vector<V>& val, First first) {
   const int rows = int(off.size()) - 1;
   tbb::parallel_for(tbb::blocked_range<int>(0, rows, 512), [&](const tbb::blocked_range<int>& r) {
     std::vector<std::pair<int, V>> row;
@@ -270,7 +271,10 @@ void sort_rows(const std::vector<std::int64_t>& off, std::vector<int>& src, std:
       const std::int64_t e0 = off[size_t(k)], e1 = off[size_t(k) + 1];
       row.clear();
       for (std::int64_t e = e0; e < e1; ++e) row.push_back({src[size_t(e)], val[size_t(e)]});
-      std::sort(row.begin(), row.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+      std::sort(row.begin(), row.end(), [&](const auto& x, const auto& y) {
+        const bool fx = first(x.first), fy = first(y.first);
+        return fx != fy ? fx : x.first < y.first;
+      });
       for (std::int64_t e = e0; e < e1; ++e) {
         src[size_t(e)] = row[size_t(e - e0)].first;
         val[size_t(e)] = row[size_t(e - e0)].second;
@@ -958,9 +962,9 @@ class Refiner {
 
 std::size_t HierarchicalOperator::Impl::bytes() const {
   return nodes.capacity() * sizeof(detail::HNode) + perm.capacity() * 4 + leaf_of.capacity() * 4 +
-         far_off.capacity() * 8 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
+         far_off.capacity() * 8 + far_flat.capacity() * 8 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
          std::size_t(leaf_count) * 12 + leaf_blocks.capacity() * 4 + row_sums.capacity() * 8 +
-         nodes.size() * (detail::kMomentRecord + detail::kLocalRecord) * 8 +  // one set of apply()'s work arrays
+         nodes.size() * (detail::kMomentRecord + detail::kLocalRecord + detail::kTuples) * 8 +  // one set of apply()'s work arrays
          (leaf_blocks.empty() ? 0 : (leaf_blocks.size() - 1) * std::size_t(n) * 8) +  // and its transposed scatter
          (tr_off.capacity() + tr_entry.capacity()) * 8 + tr_src.capacity() * 4 +
          std::size_t(n) * (sizeof(Vec3) * 2 + 8 * 5 + 48 + 1) +
@@ -1233,7 +1237,14 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
         });
         l.far.clear();
       }
-      sort_rows(d.far_off, d.far_src, d.far_vis);
+      // Flat sources first: a flat receiver takes them with the scalar kernel (hierarchy_apply.cpp).
+      sort_rows(d.far_off, d.far_src, d.far_vis, [&](int s) { return d.nodes[size_t(s)].flat; });
+      d.far_flat.assign(size_t(nn), 0);
+      for (int k = 0; k < nn; ++k) {
+        std::int64_t e = d.far_off[k];
+        while (e < d.far_off[k + 1] && d.nodes[size_t(d.far_src[size_t(e)])].flat) ++e;
+        d.far_flat[size_t(k)] = e - d.far_off[k];
+      }
     }
     store_leaf_links(d, rf, st, err);
     // Admitted error per patch: the sum over its ancestors' links (push down).

@@ -40,47 +40,111 @@ double HierarchicalOperator::row_sum(int i) const { return d_->row_sums.empty() 
 
 namespace {
 
-using Mat36 = Eigen::Matrix<double, 3, 6>;    // a vector per symmetric index pair (detail::kPairs)
-using Mat310 = Eigen::Matrix<double, 3, 10>;  // a vector per symmetric index triple (detail::kTriples)
 using detail::kPairMult;
 using detail::kPairs;
 using detail::kTripleMult;
 using detail::kTriples;
+using detail::kTuples;
 
-constexpr int kRec = detail::kMomentRecord;  // per node: centre, V, W, T, U (batch.hpp)
-constexpr int kAcc = detail::kLocalRecord;   // per node: g, J, H, C of the expansion about its centre
-constexpr int kParallelPatches = 8192;       // subtrees at least this large are pulled / pushed as parallel tasks
+constexpr int kRec = detail::kMomentRecord;  // per node: centre, vector moments, axis, scalar moments (batch.hpp)
+constexpr int kAccScalar = detail::kLocalRecord;  // per node: the local record, 3 per index tuple, then 1 per tuple
+constexpr int kAcc = detail::kLocalRecord + kTuples;
+constexpr int kParallelPatches = 8192;  // subtrees at least this large are pulled / pushed as parallel tasks
 
-// The index of a sorted pair / triple in kPairs / kTriples.
-constexpr int pair_index(int i, int j) {
-  const int a = i < j ? i : j, b = i < j ? j : i;
-  return a == b ? a : (a == 0 ? (b == 1 ? 3 : 4) : 5);
-}
-constexpr int triple_index(int i, int j, int k) {
-  for (int q = 0; q < 10; ++q) {
-    const int a = kTriples[q][0], b = kTriples[q][1], c = kTriples[q][2];
-    if ((a == i && b == j && c == k) || (a == i && b == k && c == j) || (a == j && b == i && c == k) ||
-        (a == j && b == k && c == i) || (a == k && b == i && c == j) || (a == k && b == j && c == i))
-      return q;
+// The index tuples (batch.hpp's order: (), x y z, kPairs, kTriples): their lengths, indices, and the tuple of any
+// index sequence (sorted).
+struct Tuples {
+  int len[kTuples] = {};
+  int idx[kTuples][3] = {};
+  int of1[3] = {}, of2[3][3] = {}, of3[3][3][3] = {};
+  constexpr Tuples() {
+    for (int k = 0; k < 3; ++k) {
+      len[1 + k] = 1, idx[1 + k][0] = k, of1[k] = 1 + k;
+    }
+    for (int q = 0; q < 6; ++q) {
+      const int t = 4 + q, a = kPairs[q][0], b = kPairs[q][1];
+      len[t] = 2, idx[t][0] = a, idx[t][1] = b, of2[a][b] = of2[b][a] = t;
+    }
+    for (int q = 0; q < 10; ++q) {
+      const int t = 10 + q, a = kTriples[q][0], b = kTriples[q][1], c = kTriples[q][2];
+      len[t] = 3, idx[t][0] = a, idx[t][1] = b, idx[t][2] = c;
+      of3[a][b][c] = of3[a][c][b] = of3[b][a][c] = of3[b][c][a] = of3[c][a][b] = of3[c][b][a] = t;
+    }
   }
-  return -1;
+  // The tuple of the sequence (i[0], ..., i[n-1]).
+  constexpr int of(int n, const int* i) const {
+    return n == 0 ? 0 : n == 1 ? of1[i[0]] : n == 2 ? of2[i[0]][i[1]] : of3[i[0]][i[1]][i[2]];
+  }
+};
+constexpr Tuples kT;
+
+// Moments about a parent's centre from a child's (R = 3: vector moments m[3 t + i], R = 1: scalar ones) at offset
+// dl from it: sum v (b' + dl)^t, each subset of t's indices taken from b' and the rest from dl.
+template <int R>
+void shift_moments(const double* child, const Vec3& dl, double* parent) {
+  for (int t = 0; t < kTuples; ++t) {
+    const int n = kT.len[t];
+    for (int mask = 0; mask < (1 << n); ++mask) {  // bit j set: index j from b' (the child's moment)
+      int keep[3], nk = 0;
+      double f = 1;
+      for (int j = 0; j < n; ++j)
+        if (mask >> j & 1)
+          keep[nk++] = kT.idx[t][j];
+        else
+          f *= dl[kT.idx[t][j]];
+      const int c = kT.of(nk, keep);
+      for (int i = 0; i < R; ++i) parent[R * t + i] += f * child[R * c + i];
+    }
+  }
 }
 
-// Pull: per node V = sum A x n, W = sum A x n b^T, T(:,kl) = sum A x n b_k b_l, U(:,klm) = sum A x n b_k b_l b_m,
-// b = point - node centre (each patch's own second and third moments included), children before parents.
+// The local record h(a) = sum_p L_p[(-a)^p] / p! moved to a child at offset a0 from the node's centre (a = a0 + a'):
+// L'_A = sum_j L_{A + e^j} / j! with e = -a0 (j indices e), added to the child's.
+template <int R>
+void shift_local(const double* parent, const Vec3& a0, double* child) {
+  const Vec3 e = -a0;
+  for (int t = 0; t < kTuples; ++t) {
+    const int n = kT.len[t];
+    int seq[3] = {kT.idx[t][0], kT.idx[t][1], kT.idx[t][2]};
+    for (int i = 0; i < R; ++i) child[R * t + i] += parent[R * t + i];
+    for (int k1 = 0; k1 < 3 && n + 1 <= 3; ++k1) {
+      seq[n] = k1;
+      const double f1 = e[k1];
+      const int c1 = kT.of(n + 1, seq);
+      for (int i = 0; i < R; ++i) child[R * t + i] += f1 * parent[R * c1 + i];
+      for (int k2 = 0; k2 < 3 && n + 2 <= 3; ++k2) {
+        seq[n + 1] = k2;
+        const double f2 = f1 * e[k2] / 2;
+        const int c2 = kT.of(n + 2, seq);
+        for (int i = 0; i < R; ++i) child[R * t + i] += f2 * parent[R * c2 + i];
+        for (int k3 = 0; k3 < 3 && n + 3 <= 3; ++k3) {
+          seq[n + 2] = k3;
+          const double f3 = f2 * e[k3] / 3;
+          const int c3 = kT.of(n + 3, seq);
+          for (int i = 0; i < R; ++i) child[R * t + i] += f3 * parent[R * c3 + i];
+        }
+      }
+    }
+  }
+}
+
+// Pull: per node the vector moments sum A x n b^t and, for flat nodes, the scalar ones sum A x b^t, b = point -
+// node centre (each patch's own second and third moments included), children before parents.
 void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::VectorXd>& x, double* rec, int k) {
   const HNode& nd = d.nodes[size_t(k)];
   double* r = rec + size_t(k) * kRec;
-  Eigen::Map<Vec3> V(r + 3);
-  Eigen::Map<Mat3> W(r + 6);
-  Eigen::Map<Mat36> T(r + 15);
-  Eigen::Map<Mat310> U(r + 33);
+  double* vm = r + detail::kRecVector;
+  double* sm = r + detail::kRecScalar;
   if (nd.leaf()) {
     const int p = d.perm[size_t(nd.begin)];
-    V = d.g->area[p] * x[p] * d.g->normal[p];
-    W.setZero();
-    for (int kl = 0; kl < 6; ++kl) T.col(kl) = V * d.P.M[p][kl];
-    for (int q = 0; q < 10; ++q) U.col(q) = V * d.P.M3[p][q];
+    const double w = d.g->area[p] * x[p];
+    sm[0] = w;
+    for (int t = 1; t < 4; ++t) sm[t] = 0;
+    for (int q = 0; q < 6; ++q) sm[4 + q] = w * d.P.M[p][q];
+    for (int q = 0; q < 10; ++q) sm[10 + q] = w * d.P.M3[p][q];
+    const Vec3& n = d.g->normal[p];
+    for (int t = 0; t < kTuples; ++t)
+      for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * n[i];
     return;
   }
   if (nd.end - nd.begin >= kParallelPatches)
@@ -89,67 +153,33 @@ void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::Vec
     pull(d, x, rec, nd.left);
     pull(d, x, rec, nd.right);
   }
-  V.setZero();
-  W.setZero();
-  T.setZero();
-  U.setZero();
+  std::fill_n(vm, 3 * kTuples, 0.0);
+  if (nd.flat) std::fill_n(sm, kTuples, 0.0);
   for (const int c : {nd.left, nd.right}) {
     const double* rc = rec + size_t(c) * kRec;
-    const Eigen::Map<const Vec3> Vc(rc + 3);
-    const Eigen::Map<const Mat3> Wc(rc + 6);
-    const Eigen::Map<const Mat36> Tc(rc + 15);
-    const Eigen::Map<const Mat310> Uc(rc + 33);
     const Vec3 dl = d.nodes[size_t(c)].c - nd.c;
-    V += Vc;
-    W += Wc + Vc * dl.transpose();
-    for (int kl = 0; kl < 6; ++kl) {
-      const int a = kPairs[kl][0], b = kPairs[kl][1];
-      T.col(kl) += Tc.col(kl) + Wc.col(a) * dl[b] + Wc.col(b) * dl[a] + Vc * (dl[a] * dl[b]);
-    }
-    for (int q = 0; q < 10; ++q) {  // sum v (b' + dl)_a (b' + dl)_b (b' + dl)_e, b' about the child's centre
-      const int a = kTriples[q][0], b = kTriples[q][1], e = kTriples[q][2];
-      U.col(q) += Uc.col(q) + Tc.col(pair_index(a, b)) * dl[e] + Tc.col(pair_index(a, e)) * dl[b] +
-                  Tc.col(pair_index(b, e)) * dl[a] + Wc.col(a) * (dl[b] * dl[e]) + Wc.col(b) * (dl[a] * dl[e]) +
-                  Wc.col(e) * (dl[a] * dl[b]) + Vc * (dl[a] * dl[b] * dl[e]);
-    }
+    shift_moments<3>(rc + detail::kRecVector, dl, vm);
+    if (nd.flat) shift_moments<1>(rc + detail::kRecScalar, dl, sm);  // a flat node's children are flat
   }
 }
 
-// Push: the expansion h(a) = g - J a + H[a, a] / 2 - C[a, a, a] / 6 about a node's centre, moved to a child at
-// offset a0 (a = a0 + a'): g - J a0 + H[a0, a0] / 2 - C[a0, a0, a0] / 6, J - H[a0, .] + C[a0, a0, .] / 2,
-// H - C[a0, ., .] and C; node k's own record is final when it is called.
+// Push: a node's local record moved to its children (node k's own record is final when it is called). A flat node
+// first dots its vector record (from non-flat sources, and its parent's if that is not flat) with its axis into its
+// scalar one, and passes the scalar record on: its children are flat.
 void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
   const HNode& nd = d.nodes[size_t(k)];
   if (nd.leaf()) return;
-  const double* rp = acc + size_t(k) * kAcc;
-  const Eigen::Map<const Vec3> Gp(rp);
-  const Eigen::Map<const Mat3> Jp(rp + 3);
-  const Eigen::Map<const Mat36> Hp(rp + 12);
-  const Eigen::Map<const Mat310> Cp(rp + 30);
+  double* rp = acc + size_t(k) * kAcc;
+  if (nd.flat)
+    for (int t = 0; t < kTuples; ++t)
+      rp[kAccScalar + t] += nd.axis[0] * rp[3 * t] + nd.axis[1] * rp[3 * t + 1] + nd.axis[2] * rp[3 * t + 2];
   for (const int c : {nd.left, nd.right}) {
     const Vec3 a = d.nodes[size_t(c)].c - nd.c;
-    Vec3 Haa = Vec3::Zero(), Caaa = Vec3::Zero();
-    Mat3 Ha = Mat3::Zero(), Caa = Mat3::Zero();  // column l: sum_k H_kl a_k, sum_km C_klm a_k a_m
-    Mat36 Ca = Mat36::Zero();                     // column lm: sum_k C_klm a_k
-    for (int kl = 0; kl < 6; ++kl) {
-      const int kk = kPairs[kl][0], ll = kPairs[kl][1];
-      Haa += kPairMult[kl] * a[kk] * a[ll] * Hp.col(kl);
-      Ha.col(ll) += a[kk] * Hp.col(kl);
-      if (kk != ll) Ha.col(kk) += a[ll] * Hp.col(kl);
-    }
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        for (int l = 0; l < 3; ++l) {
-          const auto col = Cp.col(triple_index(i, j, l));
-          Caaa += a[i] * a[j] * a[l] * col;
-          Caa.col(l) += a[i] * a[j] * col;
-          if (j <= l) Ca.col(pair_index(j, l)) += a[i] * col;
-        }
     double* rc = acc + size_t(c) * kAcc;
-    Eigen::Map<Vec3>(rc) += Gp - Jp * a + 0.5 * Haa - Caaa / 6;
-    Eigen::Map<Mat3>(rc + 3) += Jp - Ha + 0.5 * Caa;
-    Eigen::Map<Mat36>(rc + 12) += Hp - Ca;
-    Eigen::Map<Mat310>(rc + 30) += Cp;
+    if (nd.flat)
+      shift_local<1>(rp + kAccScalar, a, rc + kAccScalar);
+    else
+      shift_local<3>(rp, a, rc);
   }
   if (nd.end - nd.begin >= kParallelPatches)
     tbb::parallel_invoke([&] { push(d, acc, nd.left); }, [&] { push(d, acc, nd.right); });
@@ -187,7 +217,10 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
     S = std::make_unique<Impl::Scratch>();
     S->rec.resize(size_t(nn) * kRec);
     S->acc.resize(size_t(nn) * kAcc);
-    for (int k = 0; k < nn; ++k) std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rec.data() + size_t(k) * kRec);
+    for (int k = 0; k < nn; ++k) {
+      std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rec.data() + size_t(k) * kRec);
+      std::copy_n(d.nodes[size_t(k)].axis.data(), 3, S->rec.data() + size_t(k) * kRec + detail::kRecAxis);
+    }
     S->z.resize(size_t(std::max(0, int(d.leaf_blocks.size()) - 1)) * size_t(n));
   }
   double* rec = S->rec.data();
@@ -201,7 +234,14 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
       double* out = acc + size_t(k) * kAcc;
       std::fill_n(out, kAcc, 0.0);
       const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
-      if (e0 < e1) K.gather_links(rec, d.nodes[size_t(k)].c.data(), d.far_src.data() + e0, d.far_vis.data() + e0, e1 - e0, out);
+      const HNode& nd = d.nodes[size_t(k)];
+      // A flat receiver's flat sources (its links' first far_flat[k]) take the scalar kernel.
+      const std::int64_t e_mid = nd.flat ? e0 + d.far_flat[size_t(k)] : e0;
+      if (e0 < e_mid)
+        K.gather_links_flat(rec, nd.c.data(), nd.axis.data(), d.far_src.data() + e0, d.far_vis.data() + e0,
+                            e_mid - e0, out + kAccScalar);
+      if (e_mid < e1)
+        K.gather_links(rec, nd.c.data(), d.far_src.data() + e_mid, d.far_vis.data() + e_mid, e1 - e_mid, out);
     }
   });
   push(d, acc, 0);
@@ -219,16 +259,17 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
       }
     }
   });
-  // Leaves: n_i . (g + H : M_i / 2 - C : M3_i / 6) (the patch's own extent) plus the exact entries, both directions.
+  // Leaves: g + H : M_i / 2 - C : M3_i / 6 (the patch's own extent) plus the exact entries, both directions.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
       const double* ri = acc + size_t(d.leaf_of[i]) * kAcc;
-      Vec3 gi = Eigen::Map<const Vec3>(ri);
-      const Eigen::Map<const Mat36> H(ri + 12);
-      const Eigen::Map<const Mat310> C(ri + 30);
-      for (int kl = 0; kl < 6; ++kl) gi += 0.5 * kPairMult[kl] * P.M[i][kl] * H.col(kl);
-      for (int q = 0; q < 10; ++q) gi -= kTripleMult[q] / 6 * P.M3[i][q] * C.col(q);
-      double s = g.normal[i].dot(gi);
+      // The scalar record plus the vector one dotted with the normal, averaged over the patch (its first moments
+      // about the centroid vanish).
+      const Vec3& ni = g.normal[i];
+      auto at = [&](int t) { return ri[kAccScalar + t] + ni[0] * ri[3 * t] + ni[1] * ri[3 * t + 1] + ni[2] * ri[3 * t + 2]; };
+      double s = at(0);
+      for (int q = 0; q < 6; ++q) s += 0.5 * kPairMult[q] * P.M[i][q] * at(4 + q);
+      for (int q = 0; q < 10; ++q) s -= kTripleMult[q] / 6 * P.M3[i][q] * at(10 + q);
       for (std::int64_t e = d.leaf_off[i]; e < d.leaf_off[i + 1]; ++e) s += d.leaf_F[e] * x[d.leaf_src[e]];
       double in = 0;
       for (int b = 0; b < blocks; ++b) in += S->z[size_t(b) * size_t(n) + size_t(i)];

@@ -42,10 +42,11 @@ struct HierarchicalOperator::Impl {
   std::vector<detail::HNode> nodes;  // pre-order: parents before children
   std::vector<int> perm;             // patches in tree order
   std::vector<int> leaf_of;          // patch -> its leaf node
-  // Far links per receiver node (CSR over nodes, sorted by source): the source node and the visible fraction.
+  // Far links per receiver node (CSR over nodes; flat sources first, then the others, each sorted by source): the source node and the visible fraction.
   std::vector<std::int64_t> far_off;
   std::vector<int> far_src;
   std::vector<float> far_vis;
+  std::vector<std::int64_t> far_flat;  // per receiver node: how many of its first links come from flat sources
   // Exact leaf entries, each patch pair once (CSR over the pair's source s, the patch of smaller area; sorted by
   // target t): F_st. Row t's entry F_ts = F_st A_s / A_t is formed in apply() (scattered into leaf_blocks.size() - 1
   // fixed row blocks' own arrays, summed in block order: the same result for any thread count). Arrays allocated
