@@ -78,53 +78,75 @@ struct Tuples {
 };
 constexpr Tuples kT;
 
+// The products of a vector's components over each index tuple: P[t] = prod_{k in t} v_k.
+void monomials(const Vec3& v, double* P) {
+  P[0] = 1;
+  for (int t = 1; t < kTuples; ++t) {
+    double f = 1;
+    for (int j = 0; j < kT.len[t]; ++j) f *= v[kT.idx[t][j]];
+    P[t] = f;
+  }
+}
+
+// The ways to write each tuple t as a kept tuple c and a rest r (t's indices split by a subset: 111 terms), for
+// moments; and each tuple t extended by a tuple r of length at most 3 - |t| (84 terms) with the weight
+// mult(r) / |r|!, for local records.
+struct Splits {
+  int count = 0, t[111] = {}, c[111] = {}, r[111] = {};
+  constexpr Splits() {
+    for (int tt = 0; tt < kTuples; ++tt) {
+      const int n = kT.len[tt];
+      for (int mask = 0; mask < (1 << n); ++mask) {
+        int keep[3] = {}, rest[3] = {}, nk = 0, nr = 0;
+        for (int j = 0; j < n; ++j) (mask >> j & 1 ? keep[nk++] : rest[nr++]) = kT.idx[tt][j];
+        t[count] = tt, c[count] = kT.of(nk, keep), r[count] = kT.of(nr, rest);
+        ++count;
+      }
+    }
+  }
+};
+struct Extensions {
+  int count = 0, t[84] = {}, c[84] = {}, r[84] = {};
+  double w[84] = {};
+  constexpr Extensions() {
+    for (int tt = 0; tt < kTuples; ++tt)
+      for (int rr = 0; rr < kTuples; ++rr) {
+        const int n = kT.len[tt], m = kT.len[rr];
+        if (n + m > 3) continue;
+        int seq[3] = {};
+        for (int j = 0; j < n; ++j) seq[j] = kT.idx[tt][j];
+        for (int j = 0; j < m; ++j) seq[n + j] = kT.idx[rr][j];
+        // mult(r) / |r|!: 1 / (product of the factorials of r's index counts)
+        int cnt[3] = {};
+        for (int j = 0; j < m; ++j) ++cnt[kT.idx[rr][j]];
+        double f = 1;
+        for (int k = 0; k < 3; ++k) f /= cnt[k] == 3 ? 6 : cnt[k] == 2 ? 2 : 1;
+        t[count] = tt, c[count] = kT.of(n + m, seq), r[count] = rr, w[count] = f;
+        ++count;
+      }
+  }
+};
+constexpr Splits kSplits;
+constexpr Extensions kExt;
+static_assert(kSplits.count == 111 && kExt.count == 84);
+
 // Moments about a parent's centre from a child's (R = 3: vector moments m[3 t + i], R = 1: scalar ones) at offset
 // dl from it: sum v (b' + dl)^t, each subset of t's indices taken from b' and the rest from dl.
 template <int R>
-void shift_moments(const double* child, const Vec3& dl, double* parent) {
-  for (int t = 0; t < kTuples; ++t) {
-    const int n = kT.len[t];
-    for (int mask = 0; mask < (1 << n); ++mask) {  // bit j set: index j from b' (the child's moment)
-      int keep[3], nk = 0;
-      double f = 1;
-      for (int j = 0; j < n; ++j)
-        if (mask >> j & 1)
-          keep[nk++] = kT.idx[t][j];
-        else
-          f *= dl[kT.idx[t][j]];
-      const int c = kT.of(nk, keep);
-      for (int i = 0; i < R; ++i) parent[R * t + i] += f * child[R * c + i];
-    }
+void shift_moments(const double* child, const double* P, double* parent) {
+  for (int k = 0; k < kSplits.count; ++k) {
+    const double f = P[kSplits.r[k]];
+    for (int i = 0; i < R; ++i) parent[R * kSplits.t[k] + i] += f * child[R * kSplits.c[k] + i];
   }
 }
 
 // The local record h(a) = sum_p L_p[(-a)^p] / p! moved to a child at offset a0 from the node's centre (a = a0 + a'):
-// L'_A = sum_j L_{A + e^j} / j! with e = -a0 (j indices e), added to the child's.
+// L'_t = sum_r mult(r) / |r|! E[r] L_{t + r}, E the monomials of e = -a0, added to the child's.
 template <int R>
-void shift_local(const double* parent, const Vec3& a0, double* child) {
-  const Vec3 e = -a0;
-  for (int t = 0; t < kTuples; ++t) {
-    const int n = kT.len[t];
-    int seq[3] = {kT.idx[t][0], kT.idx[t][1], kT.idx[t][2]};
-    for (int i = 0; i < R; ++i) child[R * t + i] += parent[R * t + i];
-    for (int k1 = 0; k1 < 3 && n + 1 <= 3; ++k1) {
-      seq[n] = k1;
-      const double f1 = e[k1];
-      const int c1 = kT.of(n + 1, seq);
-      for (int i = 0; i < R; ++i) child[R * t + i] += f1 * parent[R * c1 + i];
-      for (int k2 = 0; k2 < 3 && n + 2 <= 3; ++k2) {
-        seq[n + 1] = k2;
-        const double f2 = f1 * e[k2] / 2;
-        const int c2 = kT.of(n + 2, seq);
-        for (int i = 0; i < R; ++i) child[R * t + i] += f2 * parent[R * c2 + i];
-        for (int k3 = 0; k3 < 3 && n + 3 <= 3; ++k3) {
-          seq[n + 2] = k3;
-          const double f3 = f2 * e[k3] / 3;
-          const int c3 = kT.of(n + 3, seq);
-          for (int i = 0; i < R; ++i) child[R * t + i] += f3 * parent[R * c3 + i];
-        }
-      }
-    }
+void shift_local(const double* parent, const double* E, double* child) {
+  for (int k = 0; k < kExt.count; ++k) {
+    const double f = kExt.w[k] * E[kExt.r[k]];
+    for (int i = 0; i < R; ++i) child[R * kExt.t[k] + i] += f * parent[R * kExt.c[k] + i];
   }
 }
 
@@ -153,14 +175,23 @@ void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::Vec
     pull(d, x, rec, nd.left);
     pull(d, x, rec, nd.right);
   }
-  std::fill_n(vm, 3 * kTuples, 0.0);
-  if (nd.flat) std::fill_n(sm, kTuples, 0.0);
+  // A flat node's children are flat: its scalar moments from theirs, its vector moments those times its axis (its
+  // normals are within kFlatCone of it). Other nodes: the vector moments from the children's.
+  const int R = nd.flat ? 1 : 3;
+  double* out = nd.flat ? sm : vm;
+  std::fill_n(out, R * kTuples, 0.0);
   for (const int c : {nd.left, nd.right}) {
     const double* rc = rec + size_t(c) * kRec;
-    const Vec3 dl = d.nodes[size_t(c)].c - nd.c;
-    shift_moments<3>(rc + detail::kRecVector, dl, vm);
-    if (nd.flat) shift_moments<1>(rc + detail::kRecScalar, dl, sm);  // a flat node's children are flat
+    double P[kTuples];
+    monomials(d.nodes[size_t(c)].c - nd.c, P);
+    if (nd.flat)
+      shift_moments<1>(rc + detail::kRecScalar, P, sm);
+    else
+      shift_moments<3>(rc + detail::kRecVector, P, vm);
   }
+  if (nd.flat)
+    for (int t = 0; t < kTuples; ++t)
+      for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * nd.axis[i];
 }
 
 // Push: a node's local record moved to its children (node k's own record is final when it is called). A flat node
@@ -174,12 +205,13 @@ void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
     for (int t = 0; t < kTuples; ++t)
       rp[kAccScalar + t] += nd.axis[0] * rp[3 * t] + nd.axis[1] * rp[3 * t + 1] + nd.axis[2] * rp[3 * t + 2];
   for (const int c : {nd.left, nd.right}) {
-    const Vec3 a = d.nodes[size_t(c)].c - nd.c;
+    double E[kTuples];
+    monomials(nd.c - d.nodes[size_t(c)].c, E);  // e = -a0
     double* rc = acc + size_t(c) * kAcc;
     if (nd.flat)
-      shift_local<1>(rp + kAccScalar, a, rc + kAccScalar);
+      shift_local<1>(rp + kAccScalar, E, rc + kAccScalar);
     else
-      shift_local<3>(rp, a, rc);
+      shift_local<3>(rp, E, rc);
   }
   if (nd.end - nd.begin >= kParallelPatches)
     tbb::parallel_invoke([&] { push(d, acc, nd.left); }, [&] { push(d, acc, nd.right); });
