@@ -119,6 +119,64 @@ DenseAndHierarchy dense_and_hierarchy(const mesh::PatchGeometry& g, double toler
   return r;
 }
 
+// Two panels of size h facing each other, 1 m apart and 0.36 m aside (off axis: odd terms do not cancel), each four
+// triangles with third moments of their own, two tree levels below the panel's node; "bent": one corner raised by
+// 0.1 h (several normals, not flat: the vector kernel and the vector moments). At a tolerance that links the panels
+// as clusters, the receiving panel's F x against dense (x on the sending panel only) is the far field's truncation
+// error, of fourth order: 1/16 per halving of h. Tolerance: the ratio below 1/11 (the correct code gives 0.055-0.060;
+// dropping the triangles' own third moments gives 0.090-0.095, the shift of the third moments up the tree without
+// its second-moment terms 0.106-0.118, the push without C[a, a, .] 0.104-0.110); and the error at h = 0.05 below
+// 1e-5 of the row (s^4 = (2 x 0.035 / 1.06)^4 = 1.9e-5 times the expansion's coefficients; a third-order error
+// would be s^3 = 2.9e-4 times its coefficients).
+TEST(Hierarchy, FarFieldErrorFallsWithTheFourthPowerOfTheClusterSize) {
+  auto panel = [](const Vec3& c, double h, double bend, bool up) {
+    // A skewed quadrilateral, one corner raised by `bend` h, cut in two across and each half by a diagonal: four
+    // triangles of third moments of their own, two levels of the tree below the panel's node.
+    const double sz = up ? -1 : 1;  // the raised corner behind the panel: a convex fold, its triangles see no other
+    const Vec3 q0 = c + Vec3(-h / 2, -h / 2, 0), q1 = c + Vec3(h / 2, -0.3 * h, 0),
+               q2 = c + Vec3(0.4 * h, h / 2, sz * bend * h), q3 = c + Vec3(-h / 2, 0.35 * h, 0);
+    const Vec3 m01 = 0.55 * q0 + 0.45 * q1, m32 = 0.55 * q3 + 0.45 * q2;
+    mesh::shapes::Polygons p{{q0, m01, m32}, {q0, m32, q3}, {m01, q1, q2}, {m01, q2, m32}};  // normals about +z
+    if (!up)
+      for (auto& t : p) std::swap(t[1], t[2]);
+    return p;
+  };
+  struct Config {
+    const char* name;
+    double bend_receiver, bend_source;
+  };
+  for (const Config& cf : {Config{"flat", 0, 0}, Config{"bent source", 0, 0.1}, Config{"both bent", 0.1, 0.1}}) {
+    double err[2] = {};
+    for (int k = 0; k < 2; ++k) {
+      const double h = k == 0 ? 0.1 : 0.05;
+      mesh::shapes::Polygons p = panel(Vec3::Zero(), h, cf.bend_receiver, true),
+                             src = panel(Vec3(0.3, 0.2, 1), h, cf.bend_source, false);
+      p.insert(p.end(), src.begin(), src.end());
+      const mesh::PatchGeometry g = polys(p);
+      Options fo;
+      fo.tolerance = 1e-14;  // entries of ~1e-3: the reference to ~1e-11 relative
+      const DenseMatrixOperator F = assemble(g, fo);
+      HierarchyOptions ho;
+      ho.tolerance = 0.5;
+      HierarchyStats st;
+      const HierarchicalOperator H = build_hierarchy(g, ho, &st);
+      ASSERT_GT(st.far_links, 0) << cf.name << " h " << h;
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(8), y0(8), y1(8);
+      for (int i = 4; i < 8; ++i) x[i] = 0.3 + 0.1 * i;
+      F.apply(x, y0);
+      H.apply(x, y1);
+      for (int i = 0; i < 4; ++i) err[k] = std::max(err[k], std::abs(y1[i] - y0[i]) / y0.head(4).maxCoeff());
+    }
+    std::printf("%s: max relative error %.3e at h = 0.1, %.3e at h = 0.05, ratio %.4f (1/16 = 0.0625)\n", cf.name,
+                err[0], err[1], err[1] / err[0]);
+    // (A far link's error, not the exact entries' ~1e-11: the panels are linked as clusters. Leaf links within a
+    // bent panel, whose folds may face each other, do not touch the receiving rows.)
+    ASSERT_GT(err[0], 1e-8) << cf.name << ": the panels were not linked as clusters";
+    EXPECT_LT(err[1] / err[0], 1 / 11.0) << cf.name << ": errors " << err[0] << " and " << err[1];
+    EXPECT_LT(err[1], 1e-5) << cf.name;
+  }
+}
+
 // A ground of 16 x 16 patches (8 m) lit by a distant emitter (4 x 4 patches, 24 m) through a 0.5 m window in a wall
 // between them: a few ground patches see the emitter, the rest do not. Cluster links accepted as blocked miss some
 // of that light (the hierarchy gives 0 where dense has up to 1.5e-3); what their rays may have missed must be in
