@@ -111,9 +111,13 @@ def flat_kernel():
     for t in TUP:
         terms=[(-1,["PQ",f"c{tid(t)}"])]+D_terms(t,None,None,E,F)
         L.append(f"  const V d{ID[t]} = {lin(terms)};")
+    # The moments times their weight mult(B) / |B|! (once per link, where it is not 1), then one FMA per term.
+    for B in TUP:
+        c=mult(B)/factorial(len(B))
+        if c!=1: L.append(f"  const V s{ID[B]} = {c!r} * s[{ID[B]}];")
     acc={}
     for A,td,B,c in contraction_entries():
-        acc.setdefault(A,[]).append((c,[f"d{td}",f"s[{B}]"]))
+        acc.setdefault(A,[]).append((1,[f"d{td}",f"s{B}" if c!=1 else f"s[{B}]"]))
     for A in range(20): L.append(f"  o[{A}] = {lin(acc[A])};")
     L.append("}")
     return L
@@ -135,12 +139,16 @@ def vector_kernel():
                         cnt=(a==r and b==i)+(a==i and b==r)
                         if cnt: terms.append((-cnt,[f"c{tid(remove(t,{j,k}))}"]))
                 L.append(f"  const V d{r}{i}_{ID[t]} = {lin(terms)};")
+    for B in TUP:
+        c=mult(B)/factorial(len(B))
+        if c!=1:
+            for i in range(3): L.append(f"  const V m{3*ID[B]+i} = {c!r} * m[{3*ID[B]+i}];")
     acc={}
     for A,td,B,c in contraction_entries():
         for r in range(3):
             for i in range(3):
                 a,b=min(r,i),max(r,i)
-                acc.setdefault((A,r),[]).append((c,[f"d{a}{b}_{td}",f"m[{3*B+i}]"]))
+                acc.setdefault((A,r),[]).append((1,[f"d{a}{b}_{td}",f"m{3*B+i}" if c!=1 else f"m[{3*B+i}]"]))
     for A in range(20):
         for r in range(3): L.append(f"  o[{3*A+r}] = {lin(acc[(A,r)])};")
     L.append("}")

@@ -134,6 +134,7 @@ static_assert(kSplits.count == 111 && kExt.count == 84);
 // dl from it: sum v (b' + dl)^t, each subset of t's indices taken from b' and the rest from dl.
 template <int R>
 void shift_moments(const double* child, const double* P, double* parent) {
+#pragma GCC unroll 111
   for (int k = 0; k < kSplits.count; ++k) {
     const double f = P[kSplits.r[k]];
     for (int i = 0; i < R; ++i) parent[R * kSplits.t[k] + i] += f * child[R * kSplits.c[k] + i];
@@ -144,6 +145,7 @@ void shift_moments(const double* child, const double* P, double* parent) {
 // L'_t = sum_r mult(r) / |r|! E[r] L_{t + r}, E the monomials of e = -a0, added to the child's.
 template <int R>
 void shift_local(const double* parent, const double* E, double* child) {
+#pragma GCC unroll 84
   for (int k = 0; k < kExt.count; ++k) {
     const double f = kExt.w[k] * E[kExt.r[k]];
     for (int i = 0; i < R; ++i) child[R * kExt.t[k] + i] += f * parent[R * kExt.c[k] + i];
