@@ -306,7 +306,7 @@ struct Local {
 };
 
 // The far field's error model's constant (try_far), calibrated on the test scenes.
-constexpr double kExpansionConstant = 0.0005;
+constexpr double kExpansionConstant = 0.005;
 constexpr int kMaxBlockedRays = 256;
 // Rays that all agree (all blocked, or all free) bound the other kind's share by kRayConfidence / rays: 3 is the
 // "rule of three", a 95 % upper confidence bound (1 would be 63 %).
@@ -958,7 +958,7 @@ class Refiner {
 
 std::size_t HierarchicalOperator::Impl::bytes() const {
   return nodes.capacity() * sizeof(detail::HNode) + perm.capacity() * 4 + leaf_of.capacity() * 4 +
-         far_off.capacity() * 8 + far_flat.capacity() * 8 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
+         far_off.capacity() * 8 + far_flat.capacity() * 10 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
          std::size_t(leaf_count) * 12 + leaf_blocks.capacity() * 4 + row_sums.capacity() * 8 +
          nodes.size() * (detail::kMomentRecord + detail::kLocalRecord + detail::kTuples) * 8 +  // one set of apply()'s work arrays
          (leaf_blocks.empty() ? 0 : (leaf_blocks.size() - 1) * std::size_t(n) * 8) +  // and its transposed scatter
@@ -1241,6 +1241,17 @@ HierarchicalOperator build_hierarchy(const mesh::PatchGeometry& given, const Hie
         while (e < d.far_off[k + 1] && d.nodes[size_t(d.far_src[size_t(e)])].flat) ++e;
         d.far_flat[size_t(k)] = e - d.far_off[k];
       }
+      d.far_vector_record.assign(size_t(nn), 0);
+      for (int k = 0; k < nn; ++k) {
+        const HNode& nd = d.nodes[size_t(k)];
+        d.far_vector_record[size_t(k)] = !nd.flat || d.far_off[k + 1] - d.far_off[k] > d.far_flat[size_t(k)] ||
+                                         (nd.parent >= 0 && !d.nodes[size_t(nd.parent)].flat);
+      }
+      d.far_vector_source.assign(size_t(nn), 0);
+      for (int k = 0; k < nn; ++k)
+        if (!d.nodes[size_t(k)].flat)
+          for (std::int64_t e = d.far_off[k]; e < d.far_off[k] + d.far_flat[size_t(k)]; ++e)
+            d.far_vector_source[size_t(d.far_src[size_t(e)])] = 1;
     }
     store_leaf_links(d, rf, st, err);
     // Admitted error per patch: the sum over its ancestors' links (push down).

@@ -152,7 +152,8 @@ void shift_local(const double* parent, const double* E, double* child) {
   }
 }
 
-// Pull: per node the vector moments sum A x n b^t and, for flat nodes, the scalar ones sum A x b^t, b = point -
+// Pull: per node the vector moments sum A x n b^t (non-flat nodes, and flat ones a non-flat receiver reads) and, for
+// flat nodes, the scalar ones sum A x b^t, b = point -
 // node centre (each patch's own second and third moments included), children before parents.
 void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::VectorXd>& x, double* rec, int k) {
   const HNode& nd = d.nodes[size_t(k)];
@@ -166,9 +167,9 @@ void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::Vec
     for (int t = 1; t < 4; ++t) sm[t] = 0;
     for (int q = 0; q < 6; ++q) sm[4 + q] = w * d.P.M[p][q];
     for (int q = 0; q < 10; ++q) sm[10 + q] = w * d.P.M3[p][q];
-    const Vec3& n = d.g->normal[p];
-    for (int t = 0; t < kTuples; ++t)
-      for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * n[i];
+    if (d.far_vector_source[size_t(k)])
+      for (int t = 0; t < kTuples; ++t)
+        for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * nd.axis[i];
     return;
   }
   if (nd.end - nd.begin >= kParallelPatches)
@@ -177,23 +178,36 @@ void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::Vec
     pull(d, x, rec, nd.left);
     pull(d, x, rec, nd.right);
   }
-  // A flat node's children are flat: its scalar moments from theirs, its vector moments those times its axis (its
-  // normals are within kFlatCone of it). Other nodes: the vector moments from the children's.
-  const int R = nd.flat ? 1 : 3;
-  double* out = nd.flat ? sm : vm;
-  std::fill_n(out, R * kTuples, 0.0);
+  // A flat node's children are flat: its scalar moments from theirs, and its vector moments (only where a non-flat
+  // receiver reads them) those times its axis (its normals are within kFlatCone of it). Other nodes: the vector
+  // moments from the children's, a flat child's from its scalar ones times its axis.
+  if (nd.flat) {
+    std::fill_n(sm, kTuples, 0.0);
+    for (const int c : {nd.left, nd.right}) {
+      double P[kTuples];
+      monomials(d.nodes[size_t(c)].c - nd.c, P);
+      shift_moments<1>(rec + size_t(c) * kRec + detail::kRecScalar, P, sm);
+    }
+    if (d.far_vector_source[size_t(k)])
+      for (int t = 0; t < kTuples; ++t)
+        for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * nd.axis[i];
+    return;
+  }
+  std::fill_n(vm, 3 * kTuples, 0.0);
   for (const int c : {nd.left, nd.right}) {
+    const HNode& ch = d.nodes[size_t(c)];
     const double* rc = rec + size_t(c) * kRec;
     double P[kTuples];
-    monomials(d.nodes[size_t(c)].c - nd.c, P);
-    if (nd.flat)
-      shift_moments<1>(rc + detail::kRecScalar, P, sm);
-    else
+    monomials(ch.c - nd.c, P);
+    if (ch.flat) {
+      double t1[kTuples] = {};
+      shift_moments<1>(rc + detail::kRecScalar, P, t1);
+      for (int t = 0; t < kTuples; ++t)
+        for (int i = 0; i < 3; ++i) vm[3 * t + i] += t1[t] * ch.axis[i];
+    } else {
       shift_moments<3>(rc + detail::kRecVector, P, vm);
+    }
   }
-  if (nd.flat)
-    for (int t = 0; t < kTuples; ++t)
-      for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * nd.axis[i];
 }
 
 // Push: a node's local record moved to its children (node k's own record is final when it is called). A flat node
@@ -203,7 +217,7 @@ void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
   const HNode& nd = d.nodes[size_t(k)];
   if (nd.leaf()) return;
   double* rp = acc + size_t(k) * kAcc;
-  if (nd.flat)
+  if (nd.flat && d.far_vector_record[size_t(k)])
     for (int t = 0; t < kTuples; ++t)
       rp[kAccScalar + t] += nd.axis[0] * rp[3 * t] + nd.axis[1] * rp[3 * t + 1] + nd.axis[2] * rp[3 * t + 2];
   for (const int c : {nd.left, nd.right}) {
@@ -266,7 +280,9 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   tbb::parallel_for(tbb::blocked_range<int>(0, nn, 256), [&](const tbb::blocked_range<int>& r) {
     for (int k = r.begin(); k < r.end(); ++k) {
       double* out = acc + size_t(k) * kAcc;
-      std::fill_n(out, kAcc, 0.0);
+      // The vector record only where something writes it (far_vector_record); the scalar one of flat nodes.
+      if (d.far_vector_record[size_t(k)]) std::fill_n(out, kAccScalar, 0.0);
+      if (d.nodes[size_t(k)].flat) std::fill_n(out + kAccScalar, kTuples, 0.0);
       const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
       const HNode& nd = d.nodes[size_t(k)];
       // A flat receiver's flat sources (its links' first far_flat[k]) take the scalar kernel.
@@ -300,7 +316,10 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
       // The scalar record plus the vector one dotted with the normal, averaged over the patch (its first moments
       // about the centroid vanish).
       const Vec3& ni = g.normal[i];
-      auto at = [&](int t) { return ri[kAccScalar + t] + ni[0] * ri[3 * t] + ni[1] * ri[3 * t + 1] + ni[2] * ri[3 * t + 2]; };
+      const bool vec = d.far_vector_record[size_t(d.leaf_of[i])];
+      auto at = [&](int t) {
+        return ri[kAccScalar + t] + (vec ? ni[0] * ri[3 * t] + ni[1] * ri[3 * t + 1] + ni[2] * ri[3 * t + 2] : 0.0);
+      };
       double s = at(0);
       for (int q = 0; q < 6; ++q) s += 0.5 * kPairMult[q] * P.M[i][q] * at(4 + q);
       for (int q = 0; q < 10; ++q) s -= kTripleMult[q] / 6 * P.M3[i][q] * at(10 + q);
