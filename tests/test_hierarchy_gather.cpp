@@ -48,12 +48,18 @@ Cluster random_cluster(std::mt19937& rng, const Vec3& c, double size, int count,
   return k;
 }
 
-// The record gather_links reads: centre, V = sum w n, W = sum w n b^T, T(:, kl) = sum w n b_k b_l,
-// U(:, klm) = sum w n b_k b_l b_m (column-major), then (for gather_links_flat) the first point's normal as the axis
-// and the scalar moments sum w b^t.
-std::array<double, fd::kMomentRecord> record(const Cluster& k) {
-  std::array<double, fd::kMomentRecord> r{};
-  for (int i = 0; i < 3; ++i) r[size_t(i)] = k.c[i];
+// The records the kernels read: gather_links centre, V = sum w n, W = sum w n b^T, T(:, kl) = sum w n b_k b_l,
+// U(:, klm) = sum w n b_k b_l b_m (column-major); gather_links_flat the centre, the first point's normal as the
+// axis and the scalar moments sum w b^t.
+struct Records {
+  std::array<double, fd::kVectorRecord> v{};
+  std::array<double, fd::kScalarRecord> s{};
+};
+Records record(const Cluster& k) {
+  Records rr;
+  auto& r = rr.v;
+  for (int i = 0; i < 3; ++i) r[size_t(i)] = rr.s[size_t(i)] = k.c[i];
+  for (int i = 0; i < 3; ++i) rr.s[size_t(3 + i)] = k.n[0][i];
   for (size_t j = 0; j < k.b.size(); ++j) {
     const Vec3 v = k.w[j] * k.n[j];
     for (int i = 0; i < 3; ++i) {
@@ -63,15 +69,14 @@ std::array<double, fd::kMomentRecord> record(const Cluster& k) {
       for (int q = 0; q < 10; ++q)
         r[size_t(33 + 3 * q + i)] += v[i] * k.b[j][kTriples[q][0]] * k.b[j][kTriples[q][1]] * k.b[j][kTriples[q][2]];
     }
-    double* sm = r.data() + fd::kRecScalar;
+    double* sm = rr.s.data() + 6;
     sm[0] += k.w[j];
     for (int i = 0; i < 3; ++i) sm[1 + i] += k.w[j] * k.b[j][i];
     for (int kl = 0; kl < 6; ++kl) sm[4 + kl] += k.w[j] * k.b[j][kPairs[kl][0]] * k.b[j][kPairs[kl][1]];
     for (int q = 0; q < 10; ++q)
       sm[10 + q] += k.w[j] * k.b[j][kTriples[q][0]] * k.b[j][kTriples[q][1]] * k.b[j][kTriples[q][2]];
   }
-  for (int i = 0; i < 3; ++i) r[size_t(fd::kRecAxis + i)] = k.n[0][i];
-  return r;
+  return rr;
 }
 
 // n . sum_j w_j K(p_j - x) n_j, K(u) = -u u^T / (pi |u|^4): the point kernel summed directly.
@@ -90,19 +95,20 @@ double direct(const std::vector<Cluster>& src, const std::vector<float>& vis, co
 // (flat: the same from gather_links_flat's scalar record, with n as the receiver's axis).
 double expanded(const fd::BatchKernels& K, const std::vector<Cluster>& src, const std::vector<float>& vis,
                 const Vec3& ca, const Vec3& a, const Vec3& n, bool flat = false) {
-  std::vector<double> rec;
+  std::vector<double> rv, rs;
   std::vector<int> idx;
   for (size_t e = 0; e < src.size(); ++e) {
-    const auto r = record(src[e]);
-    rec.insert(rec.end(), r.begin(), r.end());
+    const Records r = record(src[e]);
+    rv.insert(rv.end(), r.v.begin(), r.v.end());
+    rs.insert(rs.end(), r.s.begin(), r.s.end());
     idx.push_back(int(e));
   }
   const int R = flat ? 1 : 3;  // rows per index tuple
   double out[fd::kLocalRecord] = {};
   if (flat)
-    K.gather_links_flat(rec.data(), ca.data(), n.data(), idx.data(), vis.data(), (long long)src.size(), out);
+    K.gather_links_flat(rs.data(), ca.data(), n.data(), idx.data(), vis.data(), (long long)src.size(), out);
   else
-    K.gather_links(rec.data(), ca.data(), idx.data(), vis.data(), (long long)src.size(), out);
+    K.gather_links(rv.data(), ca.data(), idx.data(), vis.data(), (long long)src.size(), out);
   Eigen::Vector3d G = Eigen::Vector3d::Zero();
   for (int row = 0; row < R; ++row) {
     G[row] = out[row];
@@ -170,12 +176,12 @@ TEST(HierarchyGather, ExpansionErrorFallsWithTheFourthPowerOfTheClusterSize) {
 TEST(HierarchyGather, SameOnEveryInstructionSet) {
   const auto kernels = supported_kernels();
   std::mt19937 rng(5);
-  std::vector<double> rec;
-  std::vector<Vec3> centres;
+  std::vector<double> rv, rs;
   for (int b = 0; b < 50; ++b) {
     const Vec3 c = 3 * unit(rng);
-    const auto r = record(random_cluster(rng, c, 0.2, 5));
-    rec.insert(rec.end(), r.begin(), r.end());
+    const Records r = record(random_cluster(rng, c, 0.2, 5));
+    rv.insert(rv.end(), r.v.begin(), r.v.end());
+    rs.insert(rs.end(), r.s.begin(), r.s.end());
   }
   std::uniform_int_distribution<int> Ub(0, 49);
   std::uniform_real_distribution<double> Uv(0, 1);
@@ -187,9 +193,9 @@ TEST(HierarchyGather, SameOnEveryInstructionSet) {
     for (const bool flat : {false, true}) {  // (flat: the records' axes and scalar moments as if flat)
       auto run = [&](const fd::BatchKernels& K, double* out) {
         if (flat)
-          K.gather_links_flat(rec.data(), ca.data(), na.data(), src.data(), vis.data(), count, out);
+          K.gather_links_flat(rs.data(), ca.data(), na.data(), src.data(), vis.data(), count, out);
         else
-          K.gather_links(rec.data(), ca.data(), src.data(), vis.data(), count, out);
+          K.gather_links(rv.data(), ca.data(), src.data(), vis.data(), count, out);
       };
       const int outputs = flat ? fd::kTuples : fd::kLocalRecord;
       double ref[fd::kLocalRecord] = {};

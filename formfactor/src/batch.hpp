@@ -50,14 +50,14 @@ struct BatchKernels {
                     long long* outside, long long* roundoff);
   // The far links of one receiver cluster in the hierarchy's product (hierarchy_apply.cpp): out[0..59] += the
   // third-order expansion's local record about the receiver's centre ca (o[3 t + r] for the index tuples t of
-  // kTuples: g, J, H, C) summed over the links e < count in order of lanes, source node src[e] with visible
-  // fraction vis[e]. rec holds kMomentRecord doubles per node (kRec* offsets): its centre (m), its vector moments
-  // m[3 t + i] = sum A x n_i b^t, and for flat nodes their axis and scalar moments s[t] = sum A x b^t
-  // (scripts/gen_far_field3.py). Centres of a link's two nodes must differ.
+  // kTuples: g, J, H, C) summed over the links e < count in order of lanes, source record src[e] with visible
+  // fraction vis[e]. rec holds kVectorRecord doubles per source: its centre (m), then its vector moments
+  // m[3 t + i] = sum A x n_i b^t (scripts/gen_far_field3.py). Centres of a link's two nodes must differ.
   void (*gather_links)(const double* rec, const double* ca, const int* src, const float* vis, long long count,
                        double* out);
   // The same for a flat receiver (axis na) and flat sources: out[0..19] += the scalar local record o[t] (the vector
-  // one dotted with na) from the sources' axes and scalar moments.
+  // one dotted with na). rec holds kScalarRecord doubles per source: its centre, its axis, then its scalar moments
+  // s[t] = sum A x b^t.
   void (*gather_links_flat)(const double* rec, const double* ca, const double* na, const int* src, const float* vis,
                             long long count, double* out);
   // The near-pair contour's inner integral (contour.cpp) at count points of an edge: out[k] = int_0^1
@@ -68,8 +68,9 @@ struct BatchKernels {
   // normal n (kernel.hpp's signed_contour_sum: signed, no 1/2pi), its edges in the lanes.
   double (*contour_sum)(const double* x, const double* n, const double* poly, int m);
 };
-// A node's moment record: centre, vector moments (3 per index tuple), axis and scalar moments (1 per tuple).
-constexpr int kRecVector = 3, kRecAxis = 63, kRecScalar = 66, kMomentRecord = 86;
+// A node's moment records: centre and vector moments (3 per index tuple); centre, axis and scalar moments (1 per
+// tuple).
+constexpr int kVectorRecord = 63, kScalarRecord = 26;
 constexpr int kLocalRecord = 60;  // a receiver's local record: 3 per index tuple (kTuples)
 // Symmetric index tuples up to length 3 in the far field's order (scripts/gen_far_field3.py's TUP): (), x y z, then
 // the pairs and triples below, with their multiplicities.

@@ -46,9 +46,9 @@ using detail::kTripleMult;
 using detail::kTriples;
 using detail::kTuples;
 
-constexpr int kRec = detail::kMomentRecord;  // per node: centre, vector moments, axis, scalar moments (batch.hpp)
-constexpr int kAccScalar = detail::kLocalRecord;  // per node: the local record, 3 per index tuple, then 1 per tuple
-constexpr int kAcc = detail::kLocalRecord + kTuples;
+constexpr int kScal = detail::kScalarRecord;  // centre, axis, scalar moments (batch.hpp)
+constexpr int kVec = detail::kVectorRecord;    // centre, vector moments
+constexpr int kAccV = detail::kLocalRecord;    // a vector local record: 3 per index tuple
 constexpr int kParallelPatches = 8192;  // subtrees at least this large are pulled / pushed as parallel tasks
 
 // The index tuples (batch.hpp's order: (), x y z, kPairs, kTriples): their lengths, indices, and the tuple of any
@@ -152,43 +152,51 @@ void shift_local(const double* parent, const double* E, double* child) {
   }
 }
 
-// Pull: per node the vector moments sum A x n b^t (non-flat nodes, and flat ones a non-flat receiver reads) and, for
-// flat nodes, the scalar ones sum A x b^t, b = point -
-// node centre (each patch's own second and third moments included), children before parents.
-void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::VectorXd>& x, double* rec, int k) {
+// The work arrays of one product (kept between products): per node its scalar record (centre, axis, scalar
+// moments: Impl::rec_scalar's layout, batch.hpp) and scalar local record; per vector slot (Impl::vec_slot,
+// acc_slot) a vector record (centre, vector moments) and a vector local record.
+struct Work {
+  double *rs, *rv, *as, *av;
+  double* vec(const HierarchicalOperator::Impl& d, int k) const { return rv + size_t(d.vec_slot[size_t(k)]) * kVec; }
+  double* vacc(const HierarchicalOperator::Impl& d, int k) const { return av + size_t(d.acc_slot[size_t(k)]) * kAccV; }
+};
+
+// Pull: per node the scalar moments sum A x b^t (flat nodes) and the vector moments sum A x n b^t (nodes with a
+// vector slot: non-flat ones, and flat ones a non-flat receiver reads), b = point - node centre (each patch's own
+// second and third moments included), children before parents.
+void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::VectorXd>& x, const Work& w, int k) {
   const HNode& nd = d.nodes[size_t(k)];
-  double* r = rec + size_t(k) * kRec;
-  double* vm = r + detail::kRecVector;
-  double* sm = r + detail::kRecScalar;
+  double* sm = w.rs + size_t(k) * kScal + 6;
+  double* vm = d.vec_slot[size_t(k)] >= 0 ? w.vec(d, k) + 3 : nullptr;
   if (nd.leaf()) {
     const int p = d.perm[size_t(nd.begin)];
-    const double w = d.g->area[p] * x[p];
-    sm[0] = w;
+    const double wx = d.g->area[p] * x[p];
+    sm[0] = wx;
     for (int t = 1; t < 4; ++t) sm[t] = 0;
-    for (int q = 0; q < 6; ++q) sm[4 + q] = w * d.P.M[p][q];
-    for (int q = 0; q < 10; ++q) sm[10 + q] = w * d.P.M3[p][q];
-    if (d.far_vector_source[size_t(k)])
+    for (int q = 0; q < 6; ++q) sm[4 + q] = wx * d.P.M[p][q];
+    for (int q = 0; q < 10; ++q) sm[10 + q] = wx * d.P.M3[p][q];
+    if (vm)
       for (int t = 0; t < kTuples; ++t)
         for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * nd.axis[i];
     return;
   }
   if (nd.end - nd.begin >= kParallelPatches)
-    tbb::parallel_invoke([&] { pull(d, x, rec, nd.left); }, [&] { pull(d, x, rec, nd.right); });
+    tbb::parallel_invoke([&] { pull(d, x, w, nd.left); }, [&] { pull(d, x, w, nd.right); });
   else {
-    pull(d, x, rec, nd.left);
-    pull(d, x, rec, nd.right);
+    pull(d, x, w, nd.left);
+    pull(d, x, w, nd.right);
   }
-  // A flat node's children are flat: its scalar moments from theirs, and its vector moments (only where a non-flat
-  // receiver reads them) those times its axis (its normals are within kFlatCone of it). Other nodes: the vector
-  // moments from the children's, a flat child's from its scalar ones times its axis.
+  // A flat node's children are flat: its scalar moments from theirs, and its vector moments (if it has a slot)
+  // those times its axis (its normals are within kFlatCone of it). Other nodes: the vector moments from the
+  // children's, a flat child's from its scalar ones times its axis.
   if (nd.flat) {
     std::fill_n(sm, kTuples, 0.0);
     for (const int c : {nd.left, nd.right}) {
       double P[kTuples];
       monomials(d.nodes[size_t(c)].c - nd.c, P);
-      shift_moments<1>(rec + size_t(c) * kRec + detail::kRecScalar, P, sm);
+      shift_moments<1>(w.rs + size_t(c) * kScal + 6, P, sm);
     }
-    if (d.far_vector_source[size_t(k)])
+    if (vm)
       for (int t = 0; t < kTuples; ++t)
         for (int i = 0; i < 3; ++i) vm[3 * t + i] = sm[t] * nd.axis[i];
     return;
@@ -196,44 +204,43 @@ void pull(const HierarchicalOperator::Impl& d, const Eigen::Ref<const Eigen::Vec
   std::fill_n(vm, 3 * kTuples, 0.0);
   for (const int c : {nd.left, nd.right}) {
     const HNode& ch = d.nodes[size_t(c)];
-    const double* rc = rec + size_t(c) * kRec;
     double P[kTuples];
     monomials(ch.c - nd.c, P);
     if (ch.flat) {
       double t1[kTuples] = {};
-      shift_moments<1>(rc + detail::kRecScalar, P, t1);
+      shift_moments<1>(w.rs + size_t(c) * kScal + 6, P, t1);
       for (int t = 0; t < kTuples; ++t)
         for (int i = 0; i < 3; ++i) vm[3 * t + i] += t1[t] * ch.axis[i];
     } else {
-      shift_moments<3>(rc + detail::kRecVector, P, vm);
+      shift_moments<3>(w.vec(d, c) + 3, P, vm);
     }
   }
 }
 
 // Push: a node's local record moved to its children (node k's own record is final when it is called). A flat node
-// first dots its vector record (from non-flat sources, and its parent's if that is not flat) with its axis into its
-// scalar one, and passes the scalar record on: its children are flat.
-void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
+// first dots its vector record (from non-flat sources, or its parent's if that is not flat) with its axis into its
+// scalar one, and passes the scalar record on: its children are flat. A non-flat node's children have vector slots.
+void push(const HierarchicalOperator::Impl& d, const Work& w, int k) {
   const HNode& nd = d.nodes[size_t(k)];
   if (nd.leaf()) return;
-  double* rp = acc + size_t(k) * kAcc;
-  if (nd.flat && d.far_vector_record[size_t(k)])
+  double* sp = w.as + size_t(k) * kTuples;
+  const double* vp = d.acc_slot[size_t(k)] >= 0 ? w.vacc(d, k) : nullptr;
+  if (nd.flat && vp)
     for (int t = 0; t < kTuples; ++t)
-      rp[kAccScalar + t] += nd.axis[0] * rp[3 * t] + nd.axis[1] * rp[3 * t + 1] + nd.axis[2] * rp[3 * t + 2];
+      sp[t] += nd.axis[0] * vp[3 * t] + nd.axis[1] * vp[3 * t + 1] + nd.axis[2] * vp[3 * t + 2];
   for (const int c : {nd.left, nd.right}) {
     double E[kTuples];
     monomials(nd.c - d.nodes[size_t(c)].c, E);  // e = -a0
-    double* rc = acc + size_t(c) * kAcc;
     if (nd.flat)
-      shift_local<1>(rp + kAccScalar, E, rc + kAccScalar);
+      shift_local<1>(sp, E, w.as + size_t(c) * kTuples);
     else
-      shift_local<3>(rp, E, rc);
+      shift_local<3>(vp, E, w.vacc(d, c));
   }
   if (nd.end - nd.begin >= kParallelPatches)
-    tbb::parallel_invoke([&] { push(d, acc, nd.left); }, [&] { push(d, acc, nd.right); });
+    tbb::parallel_invoke([&] { push(d, w, nd.left); }, [&] { push(d, w, nd.right); });
   else {
-    push(d, acc, nd.left);
-    push(d, acc, nd.right);
+    push(d, w, nd.left);
+    push(d, w, nd.right);
   }
 }
 
@@ -242,7 +249,7 @@ void push(const HierarchicalOperator::Impl& d, double* acc, int k) {
 // Work arrays of one product, kept between products (a million-patch operator's are ~1 GB: allocating and
 // first touching them on every product cost more than the arithmetic).
 struct HierarchicalOperator::Impl::Scratch {
-  std::vector<double> rec, acc;
+  std::vector<double> rs, rv, as, av;  // Work's arrays
   std::vector<double> z;  // per leaf block, n values: sum over its rows s of F_st A_s x_s, per target t
 };
 HierarchicalOperator::Impl::~Impl() = default;
@@ -263,38 +270,45 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   }
   if (!S) {
     S = std::make_unique<Impl::Scratch>();
-    S->rec.resize(size_t(nn) * kRec);
-    S->acc.resize(size_t(nn) * kAcc);
+    S->rs.resize(size_t(nn) * kScal);
+    S->rv.resize(size_t(d.vec_slots) * kVec);
+    S->as.resize(size_t(nn) * kTuples);
+    S->av.resize(size_t(d.acc_slots) * kAccV);
     for (int k = 0; k < nn; ++k) {
-      std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rec.data() + size_t(k) * kRec);
-      std::copy_n(d.nodes[size_t(k)].axis.data(), 3, S->rec.data() + size_t(k) * kRec + detail::kRecAxis);
+      std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rs.data() + size_t(k) * kScal);
+      std::copy_n(d.nodes[size_t(k)].axis.data(), 3, S->rs.data() + size_t(k) * kScal + 3);
+      if (d.vec_slot[size_t(k)] >= 0)
+        std::copy_n(d.nodes[size_t(k)].c.data(), 3, S->rv.data() + size_t(d.vec_slot[size_t(k)]) * kVec);
     }
     S->z.resize(size_t(std::max(0, int(d.leaf_blocks.size()) - 1)) * size_t(n));
   }
-  double* rec = S->rec.data();
-  double* acc = S->acc.data();
-  pull(d, x, rec, 0);
+  const Work w{S->rs.data(), S->rv.data(), S->as.data(), S->av.data()};
+  pull(d, x, w, 0);
   // Gather (batch.hpp's gather_links, SIMD over a receiver's links): each receiver node sums its own links in
-  // stored order (deterministic for any thread count).
+  // stored order (deterministic for any thread count). A flat receiver's flat sources (its links' first
+  // far_flat[k]) take the scalar kernel; the rest the vector kernel, reading the sources' vector slots.
   const detail::BatchKernels& K = detail::batch_kernels();
   tbb::parallel_for(tbb::blocked_range<int>(0, nn, 256), [&](const tbb::blocked_range<int>& r) {
+    std::vector<int> slots;
     for (int k = r.begin(); k < r.end(); ++k) {
-      double* out = acc + size_t(k) * kAcc;
-      // The vector record only where something writes it (far_vector_record); the scalar one of flat nodes.
-      if (d.far_vector_record[size_t(k)]) std::fill_n(out, kAccScalar, 0.0);
-      if (d.nodes[size_t(k)].flat) std::fill_n(out + kAccScalar, kTuples, 0.0);
-      const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
       const HNode& nd = d.nodes[size_t(k)];
-      // A flat receiver's flat sources (its links' first far_flat[k]) take the scalar kernel.
+      double* sacc = w.as + size_t(k) * kTuples;
+      double* vacc = d.acc_slot[size_t(k)] >= 0 ? w.vacc(d, k) : nullptr;
+      std::fill_n(sacc, kTuples, 0.0);
+      if (vacc) std::fill_n(vacc, kAccV, 0.0);
+      const std::int64_t e0 = d.far_off[k], e1 = d.far_off[k + 1];
       const std::int64_t e_mid = nd.flat ? e0 + d.far_flat[size_t(k)] : e0;
       if (e0 < e_mid)
-        K.gather_links_flat(rec, nd.c.data(), nd.axis.data(), d.far_src.data() + e0, d.far_vis.data() + e0,
-                            e_mid - e0, out + kAccScalar);
-      if (e_mid < e1)
-        K.gather_links(rec, nd.c.data(), d.far_src.data() + e_mid, d.far_vis.data() + e_mid, e1 - e_mid, out);
+        K.gather_links_flat(w.rs, nd.c.data(), nd.axis.data(), d.far_src.data() + e0, d.far_vis.data() + e0,
+                            e_mid - e0, sacc);
+      if (e_mid < e1) {
+        slots.clear();
+        for (std::int64_t e = e_mid; e < e1; ++e) slots.push_back(d.vec_slot[size_t(d.far_src[size_t(e)])]);
+        K.gather_links(w.rv, nd.c.data(), slots.data(), d.far_vis.data() + e_mid, e1 - e_mid, vacc);
+      }
     }
   });
-  push(d, acc, 0);
+  push(d, w, 0);
   // The leaf pairs' transposed entries F_ts = F_st A_s / A_t: each fixed block of source rows scatters into its
   // own array (blocks in parallel), summed below in block order.
   const int blocks = std::max(0, int(d.leaf_blocks.size()) - 1);
@@ -312,13 +326,14 @@ void HierarchicalOperator::apply(const Eigen::Ref<const Eigen::VectorXd>& x, Eig
   // Leaves: g + H : M_i / 2 - C : M3_i / 6 (the patch's own extent) plus the exact entries, both directions.
   tbb::parallel_for(tbb::blocked_range<int>(0, n, 1024), [&](const tbb::blocked_range<int>& r) {
     for (int i = r.begin(); i < r.end(); ++i) {
-      const double* ri = acc + size_t(d.leaf_of[i]) * kAcc;
+      const int k = d.leaf_of[i];
+      const double* sr = w.as + size_t(k) * kTuples;
+      const double* vr = d.acc_slot[size_t(k)] >= 0 ? w.vacc(d, k) : nullptr;
       // The scalar record plus the vector one dotted with the normal, averaged over the patch (its first moments
       // about the centroid vanish).
       const Vec3& ni = g.normal[i];
-      const bool vec = d.far_vector_record[size_t(d.leaf_of[i])];
       auto at = [&](int t) {
-        return ri[kAccScalar + t] + (vec ? ni[0] * ri[3 * t] + ni[1] * ri[3 * t + 1] + ni[2] * ri[3 * t + 2] : 0.0);
+        return sr[t] + (vr ? ni[0] * vr[3 * t] + ni[1] * vr[3 * t + 1] + ni[2] * vr[3 * t + 2] : 0.0);
       };
       double s = at(0);
       for (int q = 0; q < 6; ++q) s += 0.5 * kPairMult[q] * P.M[i][q] * at(4 + q);

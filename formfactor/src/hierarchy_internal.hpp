@@ -47,9 +47,11 @@ struct HierarchicalOperator::Impl {
   std::vector<int> far_src;
   std::vector<float> far_vis;
   std::vector<std::int64_t> far_flat;  // per receiver node: how many of its first links come from flat sources
-  std::vector<char> far_vector_source;  // per node: flat, and a source of a non-flat receiver (its vector moments read)
-  // Per node: its local record has a vector part (not flat, or flat with non-flat sources or a non-flat parent).
-  std::vector<char> far_vector_record;
+  // Per node, -1 or its slot in apply()'s vector arrays: vec_slot for its vector moments (non-flat nodes, and flat
+  // ones a non-flat receiver reads), acc_slot for a vector local record (non-flat nodes, and flat ones with non-flat
+  // sources or a non-flat parent). Every node has a scalar record and a scalar local record.
+  std::vector<int> vec_slot, acc_slot;
+  int vec_slots = 0, acc_slots = 0;
   // Exact leaf entries, each patch pair once (CSR over the pair's source s, the patch of smaller area; sorted by
   // target t): F_st. Row t's entry F_ts = F_st A_s / A_t is formed in apply() (scattered into leaf_blocks.size() - 1
   // fixed row blocks' own arrays, summed in block order: the same result for any thread count). Arrays allocated

@@ -361,7 +361,7 @@ template <bool Flat>
 void gather(const double* rec, const double* ca, const double* na, const int* src, const float* vis, long long count,
             double* out) {
   constexpr int L = kGatherLanes, kOut = Flat ? kTuples : kLocalRecord;
-  constexpr int kIn = Flat ? 3 + kTuples : kLocalRecord, kFrom = Flat ? kRecAxis : kRecVector;
+  constexpr int kStride = Flat ? kScalarRecord : kVectorRecord;  // the centre, then what the kernel reads
   vg acc[kOut];
   for (vg& a : acc) a = vg{};
   vg n[3];
@@ -372,12 +372,12 @@ void gather(const double* rec, const double* ca, const double* na, const int* sr
     const double* r[L];
     vg vv;
     for (int k = 0; k < L; ++k) {
-      r[k] = rec + std::ptrdiff_t(src[e0 + (k < m ? k : 0)]) * kMomentRecord;
+      r[k] = rec + std::ptrdiff_t(src[e0 + (k < m ? k : 0)]) * kStride;
       vv[k] = k < m ? double(vis[e0 + k]) : 0.0;
     }
-    vg f[3 + kIn];  // the centre, then what the kernel reads
-    for (int c = 0; c < 3 + kIn; ++c)
-      for (int k = 0; k < L; ++k) f[c][k] = r[k][c < 3 ? c : kFrom + c - 3];
+    vg f[kStride];
+    for (int c = 0; c < kStride; ++c)
+      for (int k = 0; k < L; ++k) f[c][k] = r[k][c];
     const vg u[3] = {f[0] - ca[0], f[1] - ca[1], f[2] - ca[2]};
     const vg is = 1.0 / (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
     vg ph[4];  // the derivatives of 1 / (pi s^2) at s = |u|^2

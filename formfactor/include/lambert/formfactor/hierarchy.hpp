@@ -16,9 +16,9 @@
 //     both centres (each cluster gathers sum_j A_j x_j n_j and its first, second and third moments; receivers get
 //     n_i . (g - J a + H[a, a] / 2 - C[a, a, a] / 6), a = c_i - c_A, so orientation is per patch, never averaged;
 //     where both clusters are flat, the scalar kernel of their two normals, a third of the work). Its error per
-//     receiver and unit source area is estimated as 0.0005 s^3 (10 c_A c_B + 4 c_A + 4 c_B + 1) / (pi d_min^2)
-//     (c the largest cosines, d_min = D - R_A - R_B; a form with a constant calibrated on the tests,
-//     docs/physics.md §10). Accepted when that error plus the visibility uncertainty, times the source's
+//     receiver and unit source area is estimated as 0.005 s^3 (10 c_A c_B + 4 c_A + 4 c_B + 1) / (pi d_min^2)
+//     (c the largest cosines, d_min = D - R_A - R_B; the second-order expansion's estimate, kept: about 10x above
+//     the third order's actual errors, docs/physics.md §10). Accepted when that error plus the visibility uncertainty, times the source's
 //     brightness (Lmax_B / L_ref: Options::brightness, relative to the brightest), is within the link tolerance
 //     relative to the link's smallest value, or below 0.2% of the link tolerance in absolute terms; otherwise
 //     the larger node is split. Link tolerance: Options::tolerance x min(1, (1 - rho_max) / rho_max).
