@@ -313,7 +313,7 @@ constexpr int kMaxBlockedRays = 256;
 constexpr double kRayConfidence = 3.0;
 // A link whose error (times its source's brightness) is below this fraction of the link tolerance is accepted
 // whatever its relative error (grazing and distant links).
-constexpr double kAbsolute = 0.002;  // the same for links whose smallest value is 0 (try_far)
+constexpr double kAbsolute = 0.002;
 // Automatic per-entry tolerance of the leaf pairs, as a fraction of the link tolerance (build_hierarchy).
 constexpr double kEntryShare = 1e-3;
 
@@ -961,7 +961,8 @@ class Refiner {
 
 std::size_t HierarchicalOperator::Impl::bytes() const {
   return nodes.capacity() * sizeof(detail::HNode) + perm.capacity() * 4 + leaf_of.capacity() * 4 +
-         far_off.capacity() * 8 + far_flat.capacity() * 8 + (vec_slot.capacity() + acc_slot.capacity()) * 4 + far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
+         far_off.capacity() * 8 + far_flat.capacity() * 8 + (vec_slot.capacity() + acc_slot.capacity()) * 4 +
+         far_src.capacity() * 4 + far_vis.capacity() * 4 + leaf_off.capacity() * 8 +
          std::size_t(leaf_count) * 12 + leaf_blocks.capacity() * 4 + row_sums.capacity() * 8 +
          (nodes.size() * (detail::kScalarRecord + detail::kTuples) + size_t(vec_slots) * detail::kVectorRecord +
           size_t(acc_slots) * detail::kLocalRecord) * 8 +  // one set of apply()'s work arrays

@@ -21,8 +21,6 @@
 namespace lambert::formfactor {
 
 using detail::HNode;
-using detail::kPi;
-using Mat3 = Eigen::Matrix3d;
 
 HierarchicalOperator::HierarchicalOperator() : d_(std::make_unique<Impl>()) {}
 HierarchicalOperator::~HierarchicalOperator() = default;

@@ -42,7 +42,8 @@ struct HierarchicalOperator::Impl {
   std::vector<detail::HNode> nodes;  // pre-order: parents before children
   std::vector<int> perm;             // patches in tree order
   std::vector<int> leaf_of;          // patch -> its leaf node
-  // Far links per receiver node (CSR over nodes; flat sources first, then the others, each sorted by source): the source node and the visible fraction.
+  // Far links per receiver node (CSR over nodes; flat sources first, then the others, each sorted by source): the
+  // source node and the visible fraction.
   std::vector<std::int64_t> far_off;
   std::vector<int> far_src;
   std::vector<float> far_vis;

@@ -201,7 +201,8 @@ PatchData prepare(const mesh::PatchGeometry& g, int max_tier) {
       for (int q = 0; q < 10; ++q) {
         const int i = kTriples[q][0], j = kTriples[q][1], k = kTriples[q][2];
         double sum = s[i] * s[j] * s[k];
-        for (const Vec3& w : v) sum += w[i] * w[j] * s[k] + w[i] * s[j] * w[k] + s[i] * w[j] * w[k] + 2 * w[i] * w[j] * w[k];
+        for (const Vec3& w : v)
+          sum += w[i] * w[j] * s[k] + w[i] * s[j] * w[k] + s[i] * w[j] * w[k] + 2 * w[i] * w[j] * w[k];
         M3[size_t(q)] += sum * At / 60;
       }
     }
