@@ -29,130 +29,156 @@ import sys
 from collections import Counter
 from math import factorial
 
-TUP=[()]+[(k,) for k in range(3)]+[(0,0),(1,1),(2,2),(0,1),(0,2),(1,2)]+[(0,0,0),(1,1,1),(2,2,2),(0,0,1),(0,0,2),(0,1,1),(1,1,2),(0,2,2),(1,2,2),(0,1,2)]
-ID={t:i for i,t in enumerate(TUP)}
-def tid(t): return ID[tuple(sorted(t))]
+# The symmetric index tuples up to length 3, in the order of formfactor/src/batch.hpp (kPairs, kTriples).
+TUP = ([()] + [(k,) for k in range(3)] + [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)] +
+       [(0, 0, 0), (1, 1, 1), (2, 2, 2), (0, 0, 1), (0, 0, 2), (0, 1, 1), (1, 1, 2), (0, 2, 2), (1, 2, 2), (0, 1, 2)])
+ID = {t: i for i, t in enumerate(TUP)}
+PAIRS = TUP[4:10]
+TRIPLES = TUP[10:]
+
+
+def tid(t):
+    """The index of a tuple in any order."""
+    return ID[tuple(sorted(t))]
+
+
 def mult(t):
-    c=Counter(t); m=factorial(len(t))
-    for x in c.values(): m//=factorial(x)
+    """How many index sequences a sorted tuple stands for."""
+    m = factorial(len(t))
+    for count in Counter(t).values():
+        m //= factorial(count)
     return m
-def lin(terms):
-    """terms: list of (coeff, [factors]) -> C++ sum, folding coefficient 1 / -1 and merging repeated terms."""
-    merged={}
-    order=[]
-    for c,f in terms:
-        key=tuple(f)
-        if key not in merged: order.append(key); merged[key]=0
-        merged[key]+=c
-    terms=[(merged[k],list(k)) for k in order]
-    out=[]
-    for c,f in terms:
-        if c==0: continue
-        body=" * ".join(f)
-        if c==1: s=body
-        elif c==-1: s="-"+body
-        else: s=f"{float(c)!r} * {body}" if body else repr(float(c))
-        out.append(s)
-    if not out: return "V{}"
-    r=out[0]
-    for s in out[1:]: r+= (" - "+s[1:]) if s.startswith("-") else (" + "+s)
-    return r
-def emit_C(L):
-    # phi derivative tensor C[t] at u
-    L.append("  const V c0 = ph[0];")
-    for k in range(3): L.append(f"  const V c{tid((k,))} = 2.0 * ph[1] * u[{k}];")
-    L.append("  const V p1x2 = 2.0 * ph[1], p2x4 = 4.0 * ph[2], p3x8 = 8.0 * ph[3];")
-    for t in TUP[4:10]:
-        k,l=t
-        L.append(f"  const V c{tid(t)} = " + (f"p1x2 + p2x4 * u[{k}] * u[{l}];" if k==l else f"p2x4 * u[{k}] * u[{l}];"))
-    for t in TUP[10:]:
-        k,l,m=t
-        lin_=Counter()
-        if k==l: lin_[m]+=1
-        if k==m: lin_[l]+=1
-        if l==m: lin_[k]+=1
-        s=" + ".join((f"{float(c)!r} * u[{i}]" if c!=1 else f"u[{i}]") for i,c in sorted(lin_.items()))
-        expr=f"p3x8 * u[{k}] * u[{l}] * u[{m}]"
-        if s: expr=f"p2x4 * ({s}) + "+expr
-        L.append(f"  const V c{tid(t)} = {expr};")
-def remove(t, js):
-    return tuple(x for i,x in enumerate(t) if i not in js)
-def D_terms(t, P, Q, E, F):
-    """-(P Q C_t + sum_j E[t_j] C_{t-j} + sum_{j<k} F[t_j t_k] C_{t-jk}); P,Q,E,F: factor strings or None (zero)."""
-    terms=[]
-    if P and Q: terms.append((-1,[P,Q,f"c{tid(t)}"]) if P!="1" and Q!="1" else (-1,[x for x in (P,Q) if x!="1"]+[f"c{tid(t)}"]))
-    for j in range(len(t)):
-        e=E[t[j]]
-        if e: terms.append((-1,([e] if e!="1" else [])+[f"c{tid(remove(t,{j}))}"]))
-    for j in range(len(t)):
-        for k in range(j+1,len(t)):
-            f=F[tuple(sorted((t[j],t[k])))]
-            if f: 
-                if isinstance(f,int): terms.append((-f,[f"c{tid(remove(t,{j,k}))}"]))
-                else: terms.append((-1,[f,f"c{tid(remove(t,{j,k}))}"]))
-    return terms
+
+
+def weight(t):
+    """The weight of a moment tuple in the contraction: mult(B) / |B|!."""
+    return mult(t) / factorial(len(t))
+
+
+def without(t, positions):
+    """t without the indices at the given positions."""
+    return tuple(x for i, x in enumerate(t) if i not in positions)
+
+
+def linear(terms):
+    """C++ for a sum of products: terms are (coefficient, [factor strings]); repeated products merged, 1 and -1
+    folded into the sign."""
+    merged = {}
+    for c, factors in terms:
+        merged[tuple(factors)] = merged.get(tuple(factors), 0) + c
+    out = []
+    for factors, c in merged.items():
+        if c == 0:
+            continue
+        body = " * ".join(factors)
+        out.append(body if c == 1 else "-" + body if c == -1 else f"{float(c)!r} * {body}")
+    if not out:
+        return "V{}"
+    expr = out[0]
+    for term in out[1:]:
+        expr += " - " + term[1:] if term.startswith("-") else " + " + term
+    return expr
+
+
+def emit_phi_derivatives(lines):
+    """c{t}: the derivatives of phi(|u|^2) along the tuple t (docstring above: C_t)."""
+    lines.append("  const V c0 = ph[0];")
+    for k in range(3):
+        lines.append(f"  const V c{tid((k,))} = 2.0 * ph[1] * u[{k}];")
+    lines.append("  const V p1x2 = 2.0 * ph[1], p2x4 = 4.0 * ph[2], p3x8 = 8.0 * ph[3];")
+    for k, l in PAIRS:
+        expr = f"p1x2 + p2x4 * u[{k}] * u[{l}]" if k == l else f"p2x4 * u[{k}] * u[{l}]"
+        lines.append(f"  const V c{tid((k, l))} = {expr};")
+    for k, l, m in TRIPLES:
+        delta = Counter()  # delta_kl u_m + delta_km u_l + delta_lm u_k
+        if k == l:
+            delta[m] += 1
+        if k == m:
+            delta[l] += 1
+        if l == m:
+            delta[k] += 1
+        first = " + ".join(f"u[{i}]" if c == 1 else f"{float(c)!r} * u[{i}]" for i, c in sorted(delta.items()))
+        expr = f"p3x8 * u[{k}] * u[{l}] * u[{m}]"
+        if first:
+            expr = f"p2x4 * ({first}) + " + expr
+        lines.append(f"  const V c{tid((k, l, m))} = {expr};")
+
+
 def contraction_entries():
-    """(A, t_D, B, coeff): L[A] += coeff D[t_D] m[B]."""
-    ent=[]
-    for A in TUP:
-        for B in TUP:
-            if len(A)+len(B)>3: continue
-            ent.append((ID[A], tid(A+B), ID[B], mult(B)/factorial(len(B))))
-    return ent
+    """(A, D's tuple, B, weight): L[A] += weight(B) D[A + B] m[B] for |A| + |B| <= 3."""
+    return [(ID[A], tid(A + B), ID[B], weight(B)) for A in TUP for B in TUP if len(A) + len(B) <= 3]
+
+
 def flat_kernel():
-    L=["template <class V>","inline void far_flat3(const V* u, const V* ph, const V* n, const V* w, const V* s, V* o) {"]
-    emit_C(L)
-    L.append("  const V P = n[0] * u[0] + n[1] * u[1] + n[2] * u[2], Q = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];")
-    L.append("  const V PQ = P * Q;")
-    for k in range(3): L.append(f"  const V e{k} = n[{k}] * Q + P * w[{k}];")
-    for (k,l) in TUP[4:10]:
-        L.append(f"  const V f{k}{l} = " + (f"2.0 * n[{k}] * w[{k}];" if k==l else f"n[{k}] * w[{l}] + n[{l}] * w[{k}];"))
-    E={k:f"e{k}" for k in range(3)}; F={p:f"f{p[0]}{p[1]}" for p in TUP[4:10]}
+    """Both clusters flat: the scalar kernel -(n.u)(w.u) phi, scalar moments s[t], outputs o[t]."""
+    lines = ["template <class V>",
+             "inline void far_flat3(const V* u, const V* ph, const V* n, const V* w, const V* s, V* o) {"]
+    emit_phi_derivatives(lines)
+    lines.append("  const V P = n[0] * u[0] + n[1] * u[1] + n[2] * u[2], Q = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];")
+    lines.append("  const V PQ = P * Q;")
+    for k in range(3):
+        lines.append(f"  const V e{k} = n[{k}] * Q + P * w[{k}];")
+    for k, l in PAIRS:
+        expr = f"2.0 * n[{k}] * w[{k}]" if k == l else f"n[{k}] * w[{l}] + n[{l}] * w[{k}]"
+        lines.append(f"  const V f{k}{l} = {expr};")
+    # D_t = -(P Q C_t + sum_j E[t_j] C[t - j] + sum_{j<k} F[t_j t_k] C[t - j - k])
     for t in TUP:
-        terms=[(-1,["PQ",f"c{tid(t)}"])]+D_terms(t,None,None,E,F)
-        L.append(f"  const V d{ID[t]} = {lin(terms)};")
-    # The moments times their weight mult(B) / |B|! (once per link, where it is not 1), then one FMA per term.
+        terms = [(-1, ["PQ", f"c{tid(t)}"])]
+        terms += [(-1, [f"e{t[j]}", f"c{tid(without(t, {j}))}"]) for j in range(len(t))]
+        terms += [(-1, ["f{}{}".format(*sorted((t[j], t[k]))), f"c{tid(without(t, {j, k}))}"])
+                  for j in range(len(t)) for k in range(j + 1, len(t))]
+        lines.append(f"  const V d{ID[t]} = {linear(terms)};")
+    # The moments times their weight (once per link, where it is not 1), then one FMA per term.
     for B in TUP:
-        c=mult(B)/factorial(len(B))
-        if c!=1: L.append(f"  const V s{ID[B]} = {c!r} * s[{ID[B]}];")
-    acc={}
-    for A,td,B,c in contraction_entries():
-        acc.setdefault(A,[]).append((1,[f"d{td}",f"s{B}" if c!=1 else f"s[{B}]"]))
-    for A in range(20): L.append(f"  o[{A}] = {lin(acc[A])};")
-    L.append("}")
-    return L
+        if weight(B) != 1:
+            lines.append(f"  const V s{ID[B]} = {weight(B)!r} * s[{ID[B]}];")
+    acc = {}
+    for A, d, B, c in contraction_entries():
+        acc.setdefault(A, []).append((1, [f"d{d}", f"s{B}" if c != 1 else f"s[{B}]"]))
+    for A in range(len(TUP)):
+        lines.append(f"  o[{A}] = {linear(acc[A])};")
+    lines.append("}")
+    return lines
+
+
 def vector_kernel():
-    L=["template <class V>","inline void far_vector3(const V* u, const V* ph, const V* m, V* o) {"]
-    emit_C(L)
+    """Any clusters: the 3 x 3 kernel, vector moments m[3 t + i], outputs o[3 t + r]. Entry (r, i) is the scalar
+    kernel with n = e_r, w = e_i: P = u_r, Q = u_i, E_k = delta_rk u_i + u_r delta_ik, F_kl = delta_rk delta_il +
+    delta_rl delta_ik."""
+    lines = ["template <class V>", "inline void far_vector3(const V* u, const V* ph, const V* m, V* o) {"]
+    emit_phi_derivatives(lines)
     for r in range(3):
-        for i in range(r,3):
-            # n = e_r, w = e_i: P = u_r, Q = u_i, E_k = delta_rk u_i + u_r delta_ik, F_kl = d_rk d_il + d_rl d_ik
+        for i in range(r, 3):
             for t in TUP:
-                terms=[(-1,[f"u[{r}]",f"u[{i}]",f"c{tid(t)}"])]
+                terms = [(-1, [f"u[{r}]", f"u[{i}]", f"c{tid(t)}"])]
                 for j in range(len(t)):
-                    kk=t[j]; rest=f"c{tid(remove(t,{j}))}"
-                    if kk==r: terms.append((-1,[f"u[{i}]",rest]))
-                    if kk==i: terms.append((-1,[f"u[{r}]",rest]))
+                    rest = f"c{tid(without(t, {j}))}"
+                    if t[j] == r:
+                        terms.append((-1, [f"u[{i}]", rest]))
+                    if t[j] == i:
+                        terms.append((-1, [f"u[{r}]", rest]))
                 for j in range(len(t)):
-                    for k in range(j+1,len(t)):
-                        a,b=t[j],t[k]
-                        cnt=(a==r and b==i)+(a==i and b==r)
-                        if cnt: terms.append((-cnt,[f"c{tid(remove(t,{j,k}))}"]))
-                L.append(f"  const V d{r}{i}_{ID[t]} = {lin(terms)};")
+                    for k in range(j + 1, len(t)):
+                        count = (t[j] == r and t[k] == i) + (t[j] == i and t[k] == r)
+                        if count:
+                            terms.append((-count, [f"c{tid(without(t, {j, k}))}"]))
+                lines.append(f"  const V d{r}{i}_{ID[t]} = {linear(terms)};")
     for B in TUP:
-        c=mult(B)/factorial(len(B))
-        if c!=1:
-            for i in range(3): L.append(f"  const V m{3*ID[B]+i} = {c!r} * m[{3*ID[B]+i}];")
-    acc={}
-    for A,td,B,c in contraction_entries():
+        if weight(B) != 1:
+            for i in range(3):
+                lines.append(f"  const V m{3 * ID[B] + i} = {weight(B)!r} * m[{3 * ID[B] + i}];")
+    acc = {}
+    for A, d, B, c in contraction_entries():
         for r in range(3):
             for i in range(3):
-                a,b=min(r,i),max(r,i)
-                acc.setdefault((A,r),[]).append((1,[f"d{a}{b}_{td}",f"m{3*B+i}" if c!=1 else f"m[{3*B+i}]"]))
-    for A in range(20):
-        for r in range(3): L.append(f"  o[{3*A+r}] = {lin(acc[(A,r)])};")
-    L.append("}")
-    return L
+                a, b = min(r, i), max(r, i)
+                acc.setdefault((A, r), []).append(
+                    (1, [f"d{a}{b}_{d}", f"m{3 * B + i}" if c != 1 else f"m[{3 * B + i}]"]))
+    for A in range(len(TUP)):
+        for r in range(3):
+            lines.append(f"  o[{3 * A + r}] = {linear(acc[(A, r)])};")
+    lines.append("}")
+    return lines
 
 
 def main():

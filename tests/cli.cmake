@@ -19,6 +19,13 @@ if(Python3_FOUND)
       sh $<TARGET_FILE:lambert> ${PROJECT_SOURCE_DIR}/examples/floorplan.obj ${CMAKE_CURRENT_BINARY_DIR}/leak_floorplan_h.vtu
       ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/scripts/make_floorplan.py)
   set_tests_properties(FloorPlanShutRoomStaysDarkHierarchical PROPERTIES LABELS "end-to-end" TIMEOUT 600)
+  # The hierarchy's far-field kernels are generated (scripts/gen_far_field3.py) and committed: the committed file
+  # must be what the script writes, so that neither is edited without the other.
+  add_test(NAME GeneratedFarFieldKernelsMatchTheirScript
+    COMMAND sh -c "\"$1\" \"$2\" | cmp -s - \"$3\""
+      sh ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/scripts/gen_far_field3.py
+      ${PROJECT_SOURCE_DIR}/formfactor/src/isa/far_field3.inc)
+  set_tests_properties(GeneratedFarFieldKernelsMatchTheirScript PROPERTIES TIMEOUT 60)
 endif()
 
 # The quick accuracy study (issue: speed against error): the CSV must be well formed, errors must fall as
