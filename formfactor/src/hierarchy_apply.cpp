@@ -244,7 +244,7 @@ void push(const HierarchicalOperator::Impl& d, const Work& w, int k) {
 
 }  // namespace
 
-// Work arrays of one product, kept between products (a million-patch operator's are ~1 GB: allocating and
+// Work arrays of one product, kept between products (a million-patch operator's are ~0.8 GB: allocating and
 // first touching them on every product cost more than the arithmetic).
 struct HierarchicalOperator::Impl::Scratch {
   std::vector<double> rs, rv, as, av;  // Work's arrays
