@@ -340,7 +340,7 @@ void transpose(const double* area, double* F, long long stride, int i0, int i1, 
   *roundoff += round_total;
 }
 
-// Lanes per step: as many doubles as one register holds (8 links at a time would spill the 30 accumulators of
+// Lanes per step: as many doubles as one register holds (8 links at a time would spill the accumulators of
 // AVX2's 16 registers).
 #if defined(__AVX512F__)
 constexpr int kGatherLanes = 8;
