@@ -132,7 +132,7 @@ TEST(Hierarchy, FarFieldErrorFallsWithTheFourthPowerOfTheClusterSize) {
   auto panel = [](const Vec3& c, double h, double bend, bool up) {
     // A skewed quadrilateral, one corner raised by `bend` h, cut in two across and each half by a diagonal: four
     // triangles of third moments of their own, two levels of the tree below the panel's node.
-    const double sz = up ? -1 : 1;  // the raised corner behind the panel: a convex fold, its triangles see no other
+    const double sz = up ? -1 : 1;  // the raised corner behind the panel (the folds of the saddle may face each other)
     const Vec3 q0 = c + Vec3(-h / 2, -h / 2, 0), q1 = c + Vec3(h / 2, -0.3 * h, 0),
                q2 = c + Vec3(0.4 * h, h / 2, sz * bend * h), q3 = c + Vec3(-h / 2, 0.35 * h, 0);
     const Vec3 m01 = 0.55 * q0 + 0.45 * q1, m32 = 0.55 * q3 + 0.45 * q2;
