@@ -601,6 +601,42 @@ TEST(PrepareInvariance, TurnedModelIsImprintedAsTheUprightOne) {
   EXPECT_NEAR(area(moved), area(upright), 1e-12 * area(upright));
 }
 
+// The floor plan turned about the vertical (y) by angles that are not quarter turns, as a building placed in GIS
+// coordinates is: the same faces imprinted, the same hidden fragments removed, the same number of pieces and the same
+// area. At 30 degrees a worktop's edge came out 0.0 from a wall's plane in double precision but in front of it
+// exactly, so neither the exact intersection nor the near-contact rule (which skipped distances that round to 0)
+// split the wall: the cavity under the kitchen counter leaned on that wall, seen from the room, and was kept
+// (248 hidden fragments instead of 336, 11 m^2 of floor and wall inside the counter left as patches). Area within
+// 1e-12 relative (the turn's rounding).
+TEST(PrepareInvariance, FloorPlanTurnedAboutTheVerticalIsPreparedAsUpright) {
+  const PolygonSoup upright_in = io::read_obj(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj");
+  auto area = [](const PolygonSoup& s) {
+    double a = 0;
+    for (const SoupFace& f : s.faces) {
+      const std::vector<Vec3> c = corners(s, f);
+      Vec3 n = Vec3::Zero();
+      for (size_t k = 0; k < c.size(); ++k) n += c[k].cross(c[(k + 1) % c.size()]);
+      a += 0.5 * n.norm();
+    }
+    return a;
+  };
+  Report ru;
+  const PolygonSoup upright = prepare(upright_in, {}, ru);
+  ASSERT_EQ(count(ru, "hidden_fragments_removed"), 336) << all_warnings(ru);
+  for (const double degrees : {30.0, 17.0, 45.0, 120.0}) {
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(degrees * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
+    PolygonSoup turned_in = upright_in;
+    for (Vec3& p : turned_in.positions) p = R * p;
+    Report rt;
+    const PolygonSoup turned = prepare(turned_in, {}, rt);
+    EXPECT_EQ(count(rt, "faces_imprinted"), count(ru, "faces_imprinted")) << degrees << " degrees" << all_warnings(rt);
+    EXPECT_EQ(count(rt, "hidden_fragments_removed"), count(ru, "hidden_fragments_removed"))
+        << degrees << " degrees" << all_warnings(rt);
+    EXPECT_EQ(turned.faces.size(), upright.faces.size()) << degrees << " degrees";
+    EXPECT_NEAR(area(turned), area(upright), 1e-12 * area(upright)) << degrees << " degrees";
+  }
+}
+
 // The floor and the two blocks of CornellBox-Original.obj (../shared/models; its corners), moved by
 // GIS-sized offsets: the same faces, corner for corner. The floor left around the footprints is a region with holes,
 // emitted as its constrained Delaunay triangles, and one quadrilateral between the two footprints (corners
