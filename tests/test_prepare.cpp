@@ -637,6 +637,37 @@ TEST(PrepareInvariance, FloorPlanTurnedAboutTheVerticalIsPreparedAsUpright) {
   }
 }
 
+// The floor plan turned by 30 degrees about the vertical and rounded to single precision, as an STL export of a
+// building placed in GIS coordinates gives it (corners 1e-7 m apart from their plane, normals of faces lying
+// against each other 1e-6 apart): imprinted as the upright one. Taken as crossing instead of lying against each
+// other (parallel only to 1e-9), a wall and the cabinet side against it were not tested for hiding, and edges
+// standing 1e-7 m off a plane were filtered out before the near-contact rule: 151 faces split instead of 200, 34
+// hidden fragments removed instead of 336 (cavities under counters kept as patches inside solids). Counts exactly;
+// area within 1e-6 relative (the rounding of the corners).
+TEST(PrepareInvariance, FloorPlanRoundedToSinglePrecisionIsImprintedAsUpright) {
+  const PolygonSoup upright_in = io::read_obj(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj");
+  auto area = [](const PolygonSoup& s) {
+    double a = 0;
+    for (const SoupFace& f : s.faces) {
+      const std::vector<Vec3> c = corners(s, f);
+      Vec3 n = Vec3::Zero();
+      for (size_t k = 0; k < c.size(); ++k) n += c[k].cross(c[(k + 1) % c.size()]);
+      a += 0.5 * n.norm();
+    }
+    return a;
+  };
+  Report ru, rs;
+  const PolygonSoup upright = prepare(upright_in, {}, ru);
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(30 * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
+  PolygonSoup single_in = upright_in;
+  for (Vec3& p : single_in.positions) p = (R * p).cast<float>().cast<double>();
+  const PolygonSoup single = prepare(single_in, {}, rs);
+  EXPECT_EQ(count(rs, "faces_imprinted"), count(ru, "faces_imprinted")) << all_warnings(rs);
+  EXPECT_EQ(count(rs, "hidden_fragments_removed"), count(ru, "hidden_fragments_removed")) << all_warnings(rs);
+  EXPECT_EQ(single.faces.size(), upright.faces.size());
+  EXPECT_NEAR(area(single), area(upright), 1e-6 * area(upright));
+}
+
 // The floor and the two blocks of CornellBox-Original.obj (../shared/models; its corners), moved by
 // GIS-sized offsets: the same faces, corner for corner. The floor left around the footprints is a region with holes,
 // emitted as its constrained Delaunay triangles, and one quadrilateral between the two footprints (corners

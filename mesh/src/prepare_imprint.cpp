@@ -248,10 +248,24 @@ void near_contacts(const FaceData& on, const FaceData& from, double tol, std::ve
   }
 }
 
+// f and g in one plane: parallel to 1e-9 and within tol of each other's plane, or every corner of each within tol of
+// the other's plane. The second takes faces that rounding tilted apart: a model exported in single precision (an STL)
+// and turned in GIS coordinates has a wall's normal and a furniture panel's against it 1e-6 apart, so they were
+// taken as crossing, not lying against each other, and the wall behind the panel was not even tested for hiding.
+bool coplanar_faces(const FaceData& f, const FaceData& g, double tol) {
+  if (f.n.cross(g.n).norm() <= 1e-9) return std::abs(f.n.dot(g.poly[0] - f.poly[0])) <= tol;
+  auto within = [&](const FaceData& a, const FaceData& b) {
+    for (const Vec3& q : b.poly)
+      if (!(std::abs(a.n.dot(q - a.poly[0])) <= tol)) return false;
+    return true;
+  };
+  return within(f, g) && within(g, f);
+}
+
 // Segments where face g meets face f: into cf (f's) and cg (g's).
 void intersect_pair(const FaceData& f, const FaceData& g, double tol, Cuts& cf, Cuts& cg) {
   const bool parallel = f.n.cross(g.n).norm() <= 1e-9;
-  const bool coplanar = parallel && std::abs(f.n.dot(g.poly[0] - f.poly[0])) <= tol;
+  const bool coplanar = coplanar_faces(f, g, tol);
   if (coplanar && separated_in_plane(f, g, 0.5 * tol)) return;
   if (coplanar) {
     // Overlapping coplanar faces: each gets the other's edges, clipped to itself.
@@ -694,9 +708,7 @@ void imprint(PolygonSoup& s, double tol, Report& report) {
       fd[a].cuts.insert(fd[a].cuts.end(), r.a.begin(), r.a.end());
       fd[b].cuts.insert(fd[b].cuts.end(), r.b.begin(), r.b.end());
       // Coincident or touching faces are candidates for hiding even when nothing splits them.
-      const bool parallel = fd[a].n.cross(fd[b].n).norm() <= 1e-9;
-      const bool coplanar = parallel && std::abs(fd[a].n.dot(fd[b].poly[0] - fd[a].poly[0])) <= tol;
-      if (!r.a.empty() || !r.b.empty() || coplanar) in_contact[a] = in_contact[b] = 1;
+      if (!r.a.empty() || !r.b.empty() || coplanar_faces(fd[a], fd[b], tol)) in_contact[a] = in_contact[b] = 1;
     }
   }
 
