@@ -7,6 +7,7 @@
 #include "../formfactor/src/internal.hpp"
 #include "lambert/formfactor/exact.hpp"
 #include "lambert/formfactor/kernel.hpp"
+#include "lambert/mesh/geometry.hpp"
 #include "test_formfactor_util.hpp"
 
 using namespace lambert;
@@ -127,6 +128,34 @@ TEST(FormFactorKernel, StraddlingPolygonsMatchBruteForce) {
     const double ref = brute_point_quad(x, n, q, 2000);
     EXPECT_NEAR(F, ref, 2e-4) << "trial " << trial << " x " << x.transpose() << " n " << n.transpose();
   }
+}
+
+// clip_front's tolerance is a distance in the clipped polygon's plane from the line where it meets the clipping
+// plane. A quad 0.5 m x 0.4 m tilted 6e-7 rad from the plane z = 0, crossing it along y = 0.1, with the corner at
+// y = 0.1 - 1.7e-3 only 1e-9 behind (within eps = 2e-9): the part kept must be the part in front (area 0.5 x 0.3 m,
+// analytic), to 1e-9 of it. Tested against eps as a height, that corner was kept and with it a triangle 1.7 mm wide
+// and 0.5 m long behind the plane (area +2.5e-3 relative), whose negative cosines gave two wall patches of a model
+// rounded to single precision F = -2.9e-9 against an error estimate of 7.7e-10 (the solve was refused). A quad
+// crossing the plane at right angles keeps a corner 1e-9 behind as before (no sliver cut).
+TEST(FormFactorKernel, ClipToleranceIsADistanceInThePolygonsPlane) {
+  const double tilt = 6e-7, eps = 2e-9;
+  const Vec3 n(0, 0, 1);
+  auto height = [&](double y) { return (y - 0.1) * tilt; };  // z over the plane, 0 at y = 0.1
+  const double y_near = 0.1 - 1e-9 / tilt;                      // 1e-9 behind
+  const Poly quad = {{0, y_near, height(y_near)}, {0.5, -0.3, height(-0.3)}, {0.5, 0.4, height(0.4)},
+                     {0, 0.4, height(0.4)}};
+  std::vector<Vec3> kept;
+  detail::clip_front(quad, n, 0.0, eps, kept);
+  ASSERT_GE(kept.size(), 3u);
+  const double area = 0.5 * mesh::newell_normal(kept).norm();
+  // The part with y >= 0.1 of the quad (x from 0 to 0.5): the trapezoid's edge from (0, y_near) to (0.5, -0.3)
+  // lies below y = 0.1, so the kept part is the rectangle [0, 0.5] x [0.1, 0.4] (up to the tilt's cosine, 1e-13).
+  EXPECT_NEAR(area, 0.5 * 0.3, 1e-9 * 0.15) << "kept " << kept.size() << " corners";
+  for (const Vec3& v : kept) EXPECT_GE(v.z(), -1e-15) << "corner " << v.transpose() << " behind the plane";
+  // At right angles: a corner 1e-9 behind is on the plane, nothing is cut.
+  const Poly wall = {{0, 0, -1e-9}, {1, 0, -1e-9}, {1, 0, 1}, {0, 0, 1}};
+  detail::clip_front(wall, n, 0.0, eps, kept);
+  EXPECT_EQ(kept.size(), 4u);
 }
 
 TEST(FormFactorKernel, NonConvexPolygonEqualsSumOfItsParts) {

@@ -1,6 +1,7 @@
 // build_scene: validation errors and warnings, patch construction, Scene helpers.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -213,6 +214,26 @@ TEST(SceneBuildGeometry, NonPlanarQuadIsTriangulatedPreservingArea) {
   EXPECT_NEAR(sc.report.worst_nonplanarity, h / 2, 1e-15);
   EXPECT_TRUE(any_warning_has(sc.report, "1 non-planar face") && any_warning_has(sc.report, "0.05 m") &&
               any_warning_has(sc.report, "face 0"));
+}
+
+// A non-planar pentagon with three corners nearly in a line (b bulges 1e-7 m out of the segment a-c, as corners rounded
+// to single precision do where a cut piece of a wall has a corner inside an edge): ear clipping from b takes the ear
+// (a, b, c), a triangle 0.4 m long and 1e-7 m wide, whose form factors divided by its area leave [0, 1]. The
+// constrained Delaunay triangulation has no triangle narrower than 0.1 m here; the area is kept.
+TEST(SceneBuildGeometry, NonPlanarFaceIsSplitWithoutSlivers) {
+  const std::vector<Vec3> pos{{0.2, -1e-7, 0}, {0.4, 0, 0}, {0.4, 0.3, 1e-5}, {0, 0.3, 0}, {0, 0, 0}};  // b c d e a
+  const Scene sc = build_scene(soup_of(pos, {{0, 1, 2, 3, 4}}));
+  ASSERT_EQ(sc.report.counts.count("nonplanar_faces_triangulated"), 1u);
+  double total = 0;
+  for (int p = 0; p < sc.patches(); ++p) {
+    const auto t = sc.geometry.polygon(p);
+    ASSERT_EQ(t.size(), 3u);
+    const double longest = std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
+    EXPECT_GT(2 * sc.geometry.area[p] / longest, 0.1) << "patch " << p << ": a sliver";
+    total += sc.geometry.area[p];
+  }
+  // The rectangle plus the bulge's triangle (2e-8 m^2); the lift tilts the triangles by 3e-5 rad (area 4e-11 more).
+  EXPECT_NEAR(total, 0.4 * 0.3 + 0.5 * 0.4 * 1e-7, 1e-9);
 }
 
 TEST(SceneBuildGeometry, QuadWithinPlanarityToleranceStaysOnePatch) {

@@ -79,7 +79,7 @@ DenseMatrixOperator Assembler::run() {
         const auto& T = g_.triangles[size_t(k)];
         local.push_back({T[0] - g_.offsets[p], T[1] - g_.offsets[p], T[2] - g_.offsets[p]});
       }
-      outer_rule(g_.polygon(p), local, o_.order, rule_pts_);
+      outer_rule(prep_->P.g->polygon(p), local, o_.order, rule_pts_);  // the kernel's (planar) polygon
       rule_off_.push_back(int(rule_pts_.size()));
     }
   }

@@ -112,6 +112,13 @@ struct PatchData {
   std::array<std::vector<int>, 5> rule_off;
   std::array<std::vector<std::array<double, 4>>, 5> rule_pts;  // x, y, z, weight (weights sum to 1 per patch)
   const mesh::PatchGeometry* g = nullptr;
+  // The kernel's own copy of the geometry, each polygon projected onto its plane (through its centroid, along its
+  // normal), when some polygon is not planar beyond round-off (a model rounded to single precision: quads 1e-8 m out
+  // of plane); g then points to it, else to the geometry given. The tiers' Gauss points on a polygon's triangles and
+  // its contour integrate one and the same planar polygon: on the non-planar one they differed by 3e-8 of F on a
+  // 2.5 cm strip, 5x the error estimates, and the solve was refused. Visibility keeps the geometry as given (shared
+  // corners, watertight).
+  std::shared_ptr<const mesh::PatchGeometry> planar;
   double scene_eps = 0;
 };
 PatchData prepare(const mesh::PatchGeometry& g, int max_tier = 4);

@@ -43,7 +43,7 @@ void Assembler::fixed_rule(int i0, int i1, int j0, int j1, bool diagonal, Counte
         const double r2 = d.squaredNorm(), ci = P.nrm[src].dot(d), cj = -P.nrm[tgt].dot(d);
         if (ci > 0 && cj > 0 && r2 > 0) f = ci * cj * P.area[tgt] / (kPi * r2 * r2);
       } else {
-        const auto poly = g_.polygon(tgt);
+        const auto poly = P.g->polygon(tgt);
         for (int k = rule_off_[src]; k < rule_off_[src + 1]; ++k) {
           const auto& X = rule_pts_[k];
           f += X[3] * point_to_polygon(Vec3(X[0], X[1], X[2]), P.nrm[src], poly);
@@ -108,7 +108,7 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
       }
       const int m = kTierM[t];
       // Lanes for this pair: resize once, then fill (push_back per field was measurable here).
-      const auto poly = g_.polygon(src);
+      const auto poly = pr.P.g->polygon(src);
       const size_t cnt = m <= 4 ? size_t(pr.P.rule_off[m][src + 1] - pr.P.rule_off[m][src])
                                 : (poly.size() == 3 ? pr.triangle_rule[m].w.size() : pr.square_rule[m].w.size());
       const size_t base = b.lw.size();

@@ -57,21 +57,34 @@ double orient2(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::
 }
 }  // namespace
 
+namespace {
+// The polygon's corners on its plane, in an orthonormal basis (u, v) with (u, v, n) right-handed: counter-clockwise
+// in 2D then means the polygon's own winding.
+std::vector<Eigen::Vector2d> in_plane(std::span<const Vec3> polygon, const Vec3& normal) {
+  const Vec3 n = normal.normalized();
+  const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
+  const Vec3 v = n.cross(u);
+  std::vector<Eigen::Vector2d> p(polygon.size());
+  for (size_t k = 0; k < polygon.size(); ++k) {
+    const Vec3 d = polygon[k] - polygon[0];
+    p[k] = {d.dot(u), d.dot(v)};
+  }
+  return p;
+}
+}  // namespace
+
+std::vector<std::array<int, 3>> detail::triangulate_polygon_delaunay(std::span<const Vec3> polygon, const Vec3& normal) {
+  if (polygon.size() < 3) return {};
+  if (polygon.size() == 3) return {{0, 1, 2}};
+  return triangulate_cdt(in_plane(polygon, normal));
+}
+
 std::vector<std::array<int, 3>> triangulate_polygon(std::span<const Vec3> polygon, const Vec3& normal) {
   const int m = static_cast<int>(polygon.size());
   std::vector<std::array<int, 3>> tris;
   if (m < 3) return tris;
   if (m == 3) return {{0, 1, 2}};
-  // Project on the plane with an orthonormal basis (u, v) so that (u, v, n) is right-handed:
-  // counter-clockwise in 2D then means the polygon's own winding.
-  const Vec3 n = normal.normalized();
-  const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
-  const Vec3 v = n.cross(u);
-  std::vector<Eigen::Vector2d> p(m);
-  for (int k = 0; k < m; ++k) {
-    const Vec3 d = polygon[k] - polygon[0];
-    p[k] = {d.dot(u), d.dot(v)};
-  }
+  const std::vector<Eigen::Vector2d> p = in_plane(polygon, normal);
   // Ear clipping is O(m^2) (11.8 s at 16,000 corners): large polygons go to CGAL's constrained Delaunay
   // triangulation, O(m log m) (0.x s at 10^6 corners), with the same contract.
   if (m > detail::kEarClippingMaxCorners) return detail::triangulate_cdt(p);

@@ -278,7 +278,26 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
         report.worst_nonplanar_face = input_face(soup, k);
         worst_k = k;
       }
-      for (const auto& t : tris) specs.push_back({{fv[t[0]], fv[t[1]], fv[t[2]]}, k});
+      // Each triangle's width (its altitude onto its longest edge): ear clipping takes a sliver between corners
+      // nearly in a line where it comes first (a cut piece of a wall rounded to single precision: 0.4 m long,
+      // 1e-7 m wide, whose form factors divided by its area left [0, 1]). Then the constrained Delaunay
+      // triangulation, if its narrowest triangle is wider.
+      auto narrowest = [&](const std::vector<std::array<int, 3>>& ts) {
+        double w = INFINITY;
+        for (const auto& t : ts) {
+          const Vec3 &a = poly[t[0]], &b = poly[t[1]], &c = poly[t[2]];
+          const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+          w = std::min(w, (b - a).cross(c - a).norm() / longest);
+        }
+        return w;
+      };
+      const std::vector<std::array<int, 3>>* use = &tris;
+      std::vector<std::array<int, 3>> delaunay;
+      if (narrowest(tris) <= 10 * dev) {
+        delaunay = detail::triangulate_polygon_delaunay(poly, n);
+        if (delaunay.size() == tris.size() && narrowest(delaunay) > narrowest(tris)) use = &delaunay;
+      }
+      for (const auto& t : *use) specs.push_back({{fv[t[0]], fv[t[1]], fv[t[2]]}, k});
     } else {
       specs.push_back({fv, k});
     }

@@ -1,6 +1,9 @@
 #pragma once
 // Internal: the O(n log n) triangulation behind mesh::triangulate_polygon for large polygons.
 #include <Eigen/Core>
+#include <span>
+
+#include "lambert/mesh/geometry.hpp"
 #include <array>
 #include <deque>
 #include <utility>
@@ -15,6 +18,10 @@ constexpr int kEarClippingMaxCorners = 64;
 // Corner-index triples, counter-clockwise; empty if the polygon is not simple (crossing or touching
 // edges, repeated corners), clockwise or of zero area.
 std::vector<std::array<int, 3>> triangulate_cdt(const std::vector<Eigen::Vector2d>& p);
+
+// triangulate_polygon's contract by the constrained Delaunay triangulation whatever the corner count: it avoids slivers
+// where the polygon allows (ear clipping takes the first ear, a sliver between corners nearly in a line included).
+std::vector<std::array<int, 3>> triangulate_polygon_delaunay(std::span<const Vec3> polygon, const Vec3& normal);
 
 // Sets f->info() of every face of a CGAL constrained triangulation (faces with an int info) to its nesting
 // level: the number of constrained edges crossed on the way from the infinite face (odd = inside).
