@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
+#include <array>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -18,32 +20,62 @@ namespace {
 struct FarFromOrigin : test::Cli {
   std::string moved_room() const { return moved("room"); }
   std::string moved(const std::string& name) const;
+  // Solves both models; each channel's absorbed power of the second within `relative` of the first's.
+  void expect_same_absorbed_power(const std::string& first, const std::string& second, double relative);
+  std::string rewritten(const std::string& name, const std::string& out,
+                        const std::function<std::array<double, 3>(double, double, double)>& map,
+                        const char* format) const;
   // Runs `formfactors` (with `options`) on examples/<name>.obj and on it moved, and reports every entry more than
   // `tolerance` apart (at most 10), with the entries' count.
   void expect_same_form_factors(const std::string& name, const std::string& options, double tolerance);
 };
 
-// examples/<name>.obj moved by (1e6, 0, -2e6) m, written with 10 decimals (1e-10 m, as a GIS export might).
-std::string FarFromOrigin::moved(const std::string& name) const {
+// examples/<name>.obj with every corner mapped by `map` and written with `format` (three doubles), as <out>.
+std::string FarFromOrigin::rewritten(const std::string& name, const std::string& out,
+                                     const std::function<std::array<double, 3>(double, double, double)>& map,
+                                     const char* format) const {
   const std::string examples = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
   std::ifstream in(examples + name + ".obj");
-  std::stringstream moved;
+  std::stringstream text;
   std::string line;
   while (std::getline(in, line)) {
     if (line.rfind("v ", 0) == 0) {
       std::istringstream ss(line.substr(2));
       double x, y, z;
       ss >> x >> y >> z;
-      char buf[128];
-      std::snprintf(buf, sizeof buf, "v %.10f %.10f %.10f", x + 1e6, y, z - 2e6);
-      moved << buf << '\n';
+      const auto p = map(x, y, z);
+      char buf[160];
+      std::snprintf(buf, sizeof buf, format, p[0], p[1], p[2]);
+      text << buf << '\n';
     } else if (line.rfind("mtllib ", 0) == 0) {
-      moved << "mtllib " << examples << line.substr(7) << '\n';
+      text << "mtllib " << examples << line.substr(7) << '\n';
     } else {
-      moved << line << '\n';
+      text << line << '\n';
     }
   }
-  return write(name + "_far.obj", moved.str());
+  return write(out, text.str());
+}
+
+// examples/<name>.obj moved by (1e6, 0, -2e6) m, written with 10 decimals (1e-10 m, as a GIS export might).
+std::string FarFromOrigin::moved(const std::string& name) const {
+  return rewritten(
+      name, name + "_far.obj",
+      [](double x, double y, double z) { return std::array<double, 3>{x + 1e6, y, z - 2e6}; },
+      "v %.10f %.10f %.10f");
+}
+
+void FarFromOrigin::expect_same_absorbed_power(const std::string& first, const std::string& second, double relative) {
+  const auto a = test::run("solve " + first + " -o " + path("a.vtu") + " --stats " + path("a.json") + " --quiet");
+  const auto b = test::run("solve " + second + " -o " + path("b.vtu") + " --stats " + path("b.json") + " --quiet");
+  ASSERT_EQ(a.status, 0) << a.output;
+  ASSERT_EQ(b.status, 0) << b.output;
+  nlohmann::json ja, jb;
+  std::ifstream(path("a.json")) >> ja;
+  std::ifstream(path("b.json")) >> jb;
+  for (int c = 0; c < 3; ++c) {
+    const double pa = ja["energy"]["absorbed_W"][c], pb = jb["energy"]["absorbed_W"][c];
+    EXPECT_NEAR(pb, pa, relative * pa) << "channel " << c;
+  }
 }
 
 void FarFromOrigin::expect_same_form_factors(const std::string& name, const std::string& options, double tolerance) {
@@ -82,56 +114,21 @@ void FarFromOrigin::expect_same_form_factors(const std::string& name, const std:
 // 2.6e-2).
 TEST_F(FarFromOrigin, FloorPlanTurnedAndRoundedToSinglePrecisionSolves) {
   const std::string examples = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
-  std::ifstream in(examples + "floorplan.obj");
-  std::stringstream turned;
-  std::string line;
   const double c = std::cos(30 * M_PI / 180), s = std::sin(30 * M_PI / 180);
-  while (std::getline(in, line)) {
-    if (line.rfind("v ", 0) == 0) {
-      std::istringstream ss(line.substr(2));
-      double x, y, z;
-      ss >> x >> y >> z;
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "v %.9g %.9g %.9g", double(float(c * x - s * z)), double(float(y)),
-                    double(float(s * x + c * z)));
-      turned << buf << '\n';
-    } else if (line.rfind("mtllib ", 0) == 0) {
-      turned << "mtllib " << examples << line.substr(7) << '\n';
-    } else {
-      turned << line << '\n';
-    }
-  }
-  const std::string file = write("floorplan_single.obj", turned.str());
-  const auto a = test::run("solve " + examples + "floorplan.obj -o " + path("a.vtu") + " --stats " + path("a.json") + " --quiet");
-  const auto b = test::run("solve " + file + " -o " + path("b.vtu") + " --stats " + path("b.json") + " --quiet");
-  ASSERT_EQ(a.status, 0) << a.output;
-  ASSERT_EQ(b.status, 0) << b.output;
-  nlohmann::json ja, jb;
-  std::ifstream(path("a.json")) >> ja;
-  std::ifstream(path("b.json")) >> jb;
-  for (int ch = 0; ch < 3; ++ch) {
-    const double pa = ja["energy"]["absorbed_W"][ch], pb = jb["energy"]["absorbed_W"][ch];
-    EXPECT_NEAR(pb, pa, 1e-3 * pa) << "channel " << ch;
-  }
+  const std::string file = rewritten(
+      "floorplan", "floorplan_single.obj",
+      [&](double x, double y, double z) {
+        return std::array<double, 3>{double(float(c * x - s * z)), double(float(y)), double(float(s * x + c * z))};
+      },
+      "v %.9g %.9g %.9g");
+  expect_same_absorbed_power(examples + "floorplan.obj", file, 1e-3);
 }
 
 TEST_F(FarFromOrigin, RoomMovedByAMillionMetresSolvesWithTheSameEnergies) {
-  const std::string examples = std::string(LAMBERT_SOURCE_DIR) + "/examples/";
-  const std::string far = moved_room();
-  const auto a = test::run("solve " + examples + "room.obj -o " + path("a.vtu") + " --stats " + path("a.json") + " --quiet");
-  const auto b = test::run("solve " + far + " -o " + path("b.vtu") + " --stats " + path("b.json") + " --quiet");
-  ASSERT_EQ(a.status, 0) << a.output;
-  ASSERT_EQ(b.status, 0) << b.output;
-  nlohmann::json ja, jb;
-  std::ifstream(path("a.json")) >> ja;
-  std::ifstream(path("b.json")) >> jb;
   // Absorbed power per channel: 1e-7 relative. The same patches and the same ray samples relative to each patch
   // (the next test), so what is left is the form factors' round-off (~1e-9 per entry). Before the source of a pair
   // of equal areas was decided with a margin, this was 16-ray noise (1e-4).
-  for (int c = 0; c < 3; ++c) {
-    const double pa = ja["energy"]["absorbed_W"][c], pb = jb["energy"]["absorbed_W"][c];
-    EXPECT_NEAR(pb, pa, 1e-7 * pa) << "channel " << c;
-  }
+  expect_same_absorbed_power(std::string(LAMBERT_SOURCE_DIR) + "/examples/room.obj", moved_room(), 1e-7);
 }
 
 // The same room's form factors, entry by entry: the same nonzero entries, each within 1e-8 (the per-entry tolerance

@@ -103,6 +103,20 @@ TEST(PrepareWeld, ExactCopiesAreSharedWithoutAWarning) {
   EXPECT_TRUE(warning_with(r, "merged").empty()) << all_warnings(r);
 }
 
+// A face's area (Newell), and the soup's total.
+double face_area(const PolygonSoup& s, const SoupFace& f) {
+  const std::vector<Vec3> c = corners(s, f);
+  Vec3 n = Vec3::Zero();
+  for (size_t k = 0; k < c.size(); ++k) n += c[k].cross(c[(k + 1) % c.size()]);
+  return 0.5 * n.norm();
+}
+
+double total_area(const PolygonSoup& s) {
+  double a = 0;
+  for (const SoupFace& f : s.faces) a += face_area(s, f);
+  return a;
+}
+
 }  // namespace
 
 // ---- weld ------------------------------------------------------------------------------------------
@@ -580,16 +594,7 @@ TEST(PrepareInvariance, TurnedModelIsImprintedAsTheUprightOne) {
   shapes::Polygons turned = polys;
   for (auto& poly : turned)
     for (Vec3& p : poly) p = R * p;
-  auto area = [](const PolygonSoup& s) {
-    double a = 0;
-    for (const SoupFace& f : s.faces) {
-      const std::vector<Vec3> c = corners(s, f);
-      Vec3 n = Vec3::Zero();
-      for (size_t k = 0; k < c.size(); ++k) n += c[k].cross(c[(k + 1) % c.size()]);
-      a += 0.5 * n.norm();
-    }
-    return a;
-  };
+  const auto area = total_area;
   Report ru, rt;
   const PolygonSoup upright = prepare(soup_from(polys), {}, ru), moved = prepare(soup_from(turned), {}, rt);
   ASSERT_EQ(count(ru, "faces_imprinted"), 1) << "the floor, along both footprints";
@@ -615,12 +620,7 @@ TEST(PrepareInvariance, FloorPlanTurnedAboutTheVerticalIsPreparedAsUpright) {
   // had as many patches as upright, with its ceiling left whole and a floor piece split in two instead).
   auto pieces = [](const PolygonSoup& s) {
     std::map<int, std::vector<double>> out;
-    for (const SoupFace& f : s.faces) {
-      const std::vector<Vec3> c = corners(s, f);
-      Vec3 n = Vec3::Zero();
-      for (size_t k = 0; k < c.size(); ++k) n += c[k].cross(c[(k + 1) % c.size()]);
-      out[f.origin].push_back(0.5 * n.norm());
-    }
+    for (const SoupFace& f : s.faces) out[f.origin].push_back(face_area(s, f));
     for (auto& [face, areas] : out) std::sort(areas.begin(), areas.end());
     return out;
   };
@@ -629,7 +629,9 @@ TEST(PrepareInvariance, FloorPlanTurnedAboutTheVerticalIsPreparedAsUpright) {
     Report ru;
     const PolygonSoup upright = prepare(upright_in, {}, ru);
     const auto expected = pieces(upright);
-    if (std::string(name) == "floorplan.obj") ASSERT_EQ(count(ru, "hidden_fragments_removed"), 336) << all_warnings(ru);
+    if (std::string(name) == "floorplan.obj") {
+      ASSERT_EQ(count(ru, "hidden_fragments_removed"), 336) << all_warnings(ru);
+    }
     for (const double degrees : {30.0, 17.0, 45.0, 120.0}) {
       const Eigen::Matrix3d R = Eigen::AngleAxisd(degrees * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
       PolygonSoup turned_in = upright_in;
@@ -666,16 +668,7 @@ TEST(PrepareInvariance, FloorPlanTurnedAboutTheVerticalIsPreparedAsUpright) {
 // area within 1e-6 relative (the rounding of the corners).
 TEST(PrepareInvariance, FloorPlanRoundedToSinglePrecisionIsImprintedAsUpright) {
   const PolygonSoup upright_in = io::read_obj(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan.obj");
-  auto area = [](const PolygonSoup& s) {
-    double a = 0;
-    for (const SoupFace& f : s.faces) {
-      const std::vector<Vec3> c = corners(s, f);
-      Vec3 n = Vec3::Zero();
-      for (size_t k = 0; k < c.size(); ++k) n += c[k].cross(c[(k + 1) % c.size()]);
-      a += 0.5 * n.norm();
-    }
-    return a;
-  };
+  const auto area = total_area;
   Report ru, rs;
   const PolygonSoup upright = prepare(upright_in, {}, ru);
   const Eigen::Matrix3d R = Eigen::AngleAxisd(30 * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
