@@ -31,7 +31,9 @@
 #include "lambert/daylight/sky.hpp"
 #include "lambert/mesh/shapes.hpp"
 #include "lambert/formfactor/kernel.hpp"
+#include "lambert/io/readers.hpp"
 #include "lambert/mesh/geometry.hpp"
+#include "lambert/mesh/prepare.hpp"
 
 namespace lambert {
 namespace {
@@ -557,6 +559,31 @@ TEST_F(Daylight, WorkPlaneGridCoversFloorsInsetFromWalls) {
   for (const char* name : {"Name=\"luminance\"", "Name=\"illuminance\"", "Name=\"sky_irradiance\"",
                            "Name=\"outside_irradiance\""})
     EXPECT_NE(head.find(name), std::string::npos) << name;
+}
+
+// The work-plane grid of the floor plan turned by 30 degrees about the vertical, as a building placed in its site's
+// coordinates is: the same nodes relative to its rooms (turned back, within 1e-7 m: the grid's direction is an average
+// of the floor edges' angles, to ~1e-10 rad), in the same order. The grid used to run along the scene's axes: 550
+// nodes instead of 523, in other places (mean illuminance 3 % higher).
+TEST_F(Daylight, WorkPlaneGridOfATurnedBuildingFollowsItsRooms) {
+  const mesh::PolygonSoup upright = io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan_daylight.obj");
+  mesh::PolygonSoup turned = upright;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(30 * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
+  for (Vec3& p : turned.positions) p = R * p;
+  const mesh::Scene a = mesh::prepare_and_build(upright, {}), b = mesh::prepare_and_build(turned, {});
+  daylight::WorkPlaneOptions o;
+  o.spacing = 0.27;
+  const auto ga = daylight::work_plane_grid(a.geometry, Vec3::UnitY(), o);
+  const auto gb = daylight::work_plane_grid(b.geometry, Vec3::UnitY(), o);
+  ASSERT_GT(ga.size(), 400u);
+  ASSERT_EQ(gb.size(), ga.size());
+  int reported = 0;
+  for (size_t k = 0; k < ga.size(); ++k) {
+    const Vec3 back = R.transpose() * gb[k].position;
+    if ((back - ga[k].position).norm() > 1e-7 && reported++ < 5)
+      ADD_FAILURE() << "node " << k << " at " << ga[k].position.transpose() << " upright, " << back.transpose()
+                    << " turned back";
+  }
 }
 
 // The same room and sensors 1e6 m from the origin (georeferenced coordinates), and on 1 thread instead of all:

@@ -2,6 +2,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -90,10 +91,10 @@ std::vector<Sensor> read_sensors_csv(const std::string& path) {
 std::vector<Sensor> work_plane_grid(const mesh::PatchGeometry& g, const Vec3& up, const WorkPlaneOptions& o) {
   if (!(o.spacing > 0) || !(o.height > 0) || !(o.inset >= 0) || !std::isfinite(o.spacing) || !std::isfinite(o.height))
     throw InputError("work plane: height and grid spacing must be > 0, the inset >= 0");
-  // A basis of the horizontal plane.
+  // A basis of the horizontal plane; the grid's axes are chosen from it below, once the floors are known.
   const Vec3 helper = std::abs(up.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
-  const Vec3 e1 = (helper - helper.dot(up) * up).normalized();
-  const Vec3 e2 = up.cross(e1);
+  Vec3 e1 = (helper - helper.dot(up) * up).normalized();
+  Vec3 e2 = up.cross(e1);
   const double cos_floor = std::cos(1.0 * 3.14159265358979323846 / 180);
   std::vector<int> upward;
   for (int p = 0; p < g.size(); ++p)
@@ -134,6 +135,48 @@ std::vector<Sensor> work_plane_grid(const mesh::PatchGeometry& g, const Vec3& up
       if (gap1 * gap1 + gap2 * gap2 <= 4.0) lowest = false;
     }
     if (lowest) floors.push_back(upward[k]);
+  }
+  // The grid runs along the floors' edges: its first axis is the horizontal direction, modulo quarter turns, that most
+  // floor-edge length follows (the walls' footprint), so a building turned in its site's coordinates gets the nodes
+  // of the upright one relative to its rooms (the floor plan turned by 30 degrees had 550 nodes instead of 523, and
+  // a mean illuminance 3 % higher). Edge directions as angles in [0, 90) degrees, a length-weighted histogram of
+  // 0.1 degree bins (cyclic), and the length-weighted mean of 4x the angle over the fullest bin and its neighbours.
+  // A model whose floor edges lie along the axes keeps the axes exactly (every angle 0).
+  {
+    constexpr int kBins = 900;
+    const double quarter = 3.14159265358979323846 / 2;
+    std::vector<double> weight(kBins, 0.0);
+    std::vector<std::array<double, 2>> edges;  // angle, length
+    for (int p : floors) {
+      const auto poly = g.polygon(p);
+      for (size_t k = 0; k < poly.size(); ++k) {
+        const Vec3 d = poly[(k + 1) % poly.size()] - poly[k];
+        const double x = d.dot(e1), y = d.dot(e2), len = std::hypot(x, y);
+        if (!(len > 0)) continue;
+        double a = std::atan2(y, x);
+        a = a - quarter * std::floor(a / quarter);
+        if (!(a < quarter)) a = 0;  // rounding up to a quarter turn is a quarter turn
+        edges.push_back({a, len});
+        weight[size_t(std::min(kBins - 1, int(a / quarter * kBins)))] += len;
+      }
+    }
+    int best = 0;
+    for (int b = 1; b < kBins; ++b)
+      if (weight[size_t(b)] > weight[size_t(best)]) best = b;
+    double c4 = 0, s4 = 0;
+    for (const auto& [a, len] : edges) {
+      const int b = std::min(kBins - 1, int(a / quarter * kBins));
+      const int off = ((b - best) % kBins + kBins) % kBins;
+      if (off > 1 && off < kBins - 1) continue;
+      c4 += len * std::cos(4 * a);
+      s4 += len * std::sin(4 * a);
+    }
+    const double theta = std::atan2(s4, c4) / 4;
+    if (theta != 0) {
+      const Vec3 f1 = std::cos(theta) * e1 + std::sin(theta) * e2;
+      e1 = f1.normalized();
+      e2 = up.cross(e1);
+    }
   }
   double lo1 = INFINITY, lo2 = INFINITY;
   for (int p : floors)
