@@ -158,6 +158,30 @@ TEST(FormFactorKernel, ClipToleranceIsADistanceInThePolygonsPlane) {
   EXPECT_EQ(kept.size(), 4u);
 }
 
+// A 2 cm triangle and a ceiling patch 5.5 m away that crosses the triangle's plane by about 1.4e-6 m at one corner
+// (the floor plan turned and stored as a single-precision STL): clipped to the triangle's front, the patch is a few
+// micrometres across. Its double contour integral cancels ln r over nearly equal distances, so its value is noise of
+// ~1e-13 from the corners' last bits: in the STL it came out as F = -6.5e-14 with an error estimate of 4e-14, which
+// the checks took as a wrong entry, refusing the model. The pair lies within A' / (pi d^2) (both cosines at most 1),
+// below 1e-12 here: over 400 placements of the patch (its corners moved by whole ulps), F must lie in [0, 1e-12]
+// within its own error estimate.
+TEST(FormFactorKernel, TinyClippedPieceFarAwayStaysWithinItsBound) {
+  const Poly s = {{-1.924999832582624, -0.950000255732520, 0.930000036954880},
+                  {-1.899999673577085, -0.950000254141446, 0.930000036954880},
+                  {-1.899999673577055, -0.950000254141446, 0.907894636989832}};
+  int wrong = 0;
+  for (int k = 0; k < 400; ++k) {
+    const double dy = std::ldexp(double(k % 20 - 10), -52), dx = std::ldexp(double(k / 20 - 10), -50);
+    const Poly t = {{3.625000488820581 + dx, -0.949998885682143 + dy, 1.350000023841858},
+                    {3.625000665922767, -1.049999005512983, 1.350000023841858},
+                    {3.400000652545947, -1.049999138981497, 1.350000023841858}};
+    const auto r = polygon_to_polygon(s, t, 1e-8);
+    if ((r.F + r.error_estimate < 0 || r.F - r.error_estimate > 1e-12) && wrong++ < 5)
+      ADD_FAILURE() << "placement " << k << ": F " << r.F << " +- " << r.error_estimate << " (" << r.method << ")";
+  }
+  EXPECT_EQ(wrong, 0) << "of 400 placements";
+}
+
 TEST(FormFactorKernel, NonConvexPolygonEqualsSumOfItsParts) {
   // L-shaped hexagon = union of two rectangles; the contour formula is additive (tolerance: rounding).
   const Poly L = {{0, 0, 1}, {0, 2, 1}, {1, 2, 1}, {1, 1, 1}, {2, 1, 1}, {2, 0, 1}};  // faces -z

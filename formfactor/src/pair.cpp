@@ -344,6 +344,29 @@ PairEval pair_scalar(const PatchData& P, const PointSoA& soa, int s, int t, doub
 }
 
 namespace {
+// An upper bound on A_s F_st for clipped polygons apart: A_s' A_t' / (pi d^2), d the gap between their bounding
+// spheres (both cosines at most 1), or infinity. The double contour integral of a piece small against its distance
+// cancels ln r of nearly equal values: a 3 um corner of a ceiling patch clipped to the front of a 2 cm triangle 5.5 m
+// away (a model turned and rounded to single precision) gave A_s F_st = -1.8e-17 against an estimate of 1.1e-17,
+// where this bound is 1.4e-17. Where the bound is within half the tolerance the pair is its midpoint, plus or minus
+// half of it: a rigorous enclosure, without the integral.
+double clipped_bound(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  auto sphere = [](const std::vector<Vec3>& p, Vec3& c, double& r) {
+    c = Vec3::Zero();
+    for (const Vec3& v : p) c += v;
+    c /= double(p.size());
+    r = 0;
+    for (const Vec3& v : p) r = std::max(r, (v - c).norm());
+  };
+  Vec3 ca, cb;
+  double ra, rb;
+  sphere(a, ca, ra);
+  sphere(b, cb, rb);
+  const double d = (ca - cb).norm() - ra - rb;
+  if (!(d > 0)) return INFINITY;
+  return 0.5 * mesh::newell_normal(a).norm() * 0.5 * mesh::newell_normal(b).norm() / (kPi * d * d);
+}
+
 PairEval pair_eval(const PatchData& P, const PointSoA* soa, int s, int t, double tol) {
   PairEval out;
   const mesh::PatchGeometry& g = *P.g;
@@ -404,6 +427,11 @@ PairEval pair_eval(const PatchData& P, const PointSoA* soa, int s, int t, double
   clip_front(Pt, P.nrm[s], P.offset[s], eps, ct);
   out.method = kContour;
   if (cs.size() < 3 || ct.size() < 3) return out;
+  if (const double B = clipped_bound(cs, ct); B <= 0.5 * tol * P.area[s]) {  // B: A_s F_st
+    out.F = 0.5 * B / P.area[s];
+    out.error = 0.5 * B / P.area[s];
+    return out;
+  }
   const ContourResult c = contour_pair(cs, ct, tol * P.area[s]);
   out.F = c.AF / P.area[s];
   out.error = c.error / P.area[s];
@@ -420,6 +448,11 @@ ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol) {
   clip_front(g.polygon(t), P.nrm[s], P.offset[s], P.scene_eps, ct);
   ReverseIntegral r;
   if (cs.size() < 3 || ct.size() < 3) return r;
+  if (const double B = clipped_bound(cs, ct); B <= 0.5 * tol * P.area[s]) {  // as pair_eval
+    r.AF = 0.5 * B;
+    r.error = 0.5 * B;
+    return r;
+  }
   const ContourResult c = contour_pair(ct, cs, tol * P.area[s]);
   r.AF = c.AF;
   r.error = c.error;
