@@ -286,8 +286,8 @@ Scene build_scene(const PolygonSoup& soup, const BuildOptions& options) {
         double w = INFINITY;
         for (const auto& t : ts) {
           const Vec3 &a = poly[t[0]], &b = poly[t[1]], &c = poly[t[2]];
-          const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-          w = std::min(w, (b - a).cross(c - a).norm() / longest);
+          const double edge = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+          w = std::min(w, (b - a).cross(c - a).norm() / edge);
         }
         return w;
       };
