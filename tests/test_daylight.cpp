@@ -586,6 +586,29 @@ TEST_F(Daylight, WorkPlaneGridOfATurnedBuildingFollowsItsRooms) {
   }
 }
 
+// The sky on the patches of the floor plan turned by 30 degrees: the Gatherer clips in a frame turned back along the
+// building's walls (mesh::alignment), and its queries come in the given frame; each patch's sky irradiance equals the
+// upright one's within 1e-7 of the brightest (the clipping's integer grid, ~1e-8). Without turning the sun's `up`
+// into that frame with the points, the sky would be tilted by 30 degrees.
+TEST_F(Daylight, SkyOnATurnedBuildingIsTheUprightOnes) {
+  const mesh::PolygonSoup upright = io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan_daylight.obj");
+  mesh::PolygonSoup turned = upright;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(30 * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
+  for (Vec3& p : turned.positions) p = R * p;
+  const mesh::Scene a = mesh::prepare_and_build(upright, {}), b = mesh::prepare_and_build(turned, {});
+  ASSERT_EQ(a.patches(), b.patches());
+  daylight::Sky sky;  // CIE overcast, up y
+  const daylight::Gatherer ga(a.geometry, 4), gb(b.geometry, 4);
+  const auto ea = daylight::patch_sky_irradiance(a, sky, ga, nullptr);
+  const auto eb = daylight::patch_sky_irradiance(b, sky, gb, nullptr);
+  const double top = *std::max_element(ea.begin(), ea.end());
+  ASSERT_GT(top, 0);
+  int reported = 0;
+  for (size_t p = 0; p < ea.size(); ++p)
+    if (std::abs(ea[p] - eb[p]) > 1e-7 * top && reported++ < 5)
+      ADD_FAILURE() << "patch " << p << ": " << ea[p] << " upright, " << eb[p] << " turned (of " << top << ")";
+}
+
 // The same room and sensors 1e6 m from the origin (georeferenced coordinates), and on 1 thread instead of all:
 // the daylight factors agree (1e-6 %: the clipping's integer grid is relative to the scene and to each hemicube,
 // so it moves with the model), and the thread count changes nothing (each sensor is computed alone: identical).

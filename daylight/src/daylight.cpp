@@ -445,7 +445,29 @@ Moments open_moments(const Merged& M, const Vec3& x, const Vec3& n, const Vec3& 
 }  // namespace
 
 struct Gatherer::Impl {
-  const mesh::PatchGeometry& g;
+  // The frame the clipping works in: a building turned in its site's coordinates is turned back
+  // (mesh::alignment) and moved to its centre, so that the hemicubes' faces lie along its walls (turned by 30
+  // degrees, the floor plan's sky took 1.13 -> 1.73 s, clipping slanted polygons). Queries come in the given frame:
+  // x -> R (x - centre), directions -> R d. The moments are integrals over directions, the same in either frame.
+  const mesh::PatchGeometry& given;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Vec3 centre = Vec3::Zero();
+  std::unique_ptr<mesh::PatchGeometry> own;  // the turned copy, if any
+  const mesh::PatchGeometry& g;               // what the clipping and the rays see: *own or given
+  static std::unique_ptr<mesh::PatchGeometry> turned(const mesh::PatchGeometry& in, Eigen::Matrix3d& R, Vec3& c) {
+    R = mesh::alignment(in);
+    if (R.isIdentity(0)) return nullptr;
+    Eigen::AlignedBox3d box;
+    for (const Vec3& v : in.points) box.extend(v);
+    c = box.center();
+    auto t = std::make_unique<mesh::PatchGeometry>(in);
+    for (Vec3& v : t->points) v = R * (v - c);
+    for (Vec3& v : t->centroid) v = R * (v - c);
+    for (Vec3& v : t->normal) v = R * v;
+    return t;
+  }
+  Vec3 point(const Vec3& x) const { return own ? Vec3(R * (x - centre)) : x; }
+  Vec3 direction(const Vec3& d) const { return own ? Vec3(R * d) : d; }
   std::vector<std::vector<Sample>> samples;
   std::vector<double> offset;  // n_p . c_p
   std::unique_ptr<formfactor::Visibility> vis;
@@ -537,7 +559,8 @@ struct Gatherer::Impl {
       if (likely[size_t(j)]) first[size_t(merged.patch_group[size_t(j)])] = 1;
   }
 
-  Impl(const mesh::PatchGeometry& geometry, int count) : g(geometry) {
+  Impl(const mesh::PatchGeometry& geometry, int count)
+      : given(geometry), own(turned(geometry, R, centre)), g(own ? *own : geometry) {
     samples.resize(size_t(g.size()));
     offset.resize(size_t(g.size()));
     Eigen::AlignedBox3d box;
@@ -597,10 +620,11 @@ Gatherer::Gatherer(const mesh::PatchGeometry& geometry, int rays) : impl_(std::m
 Gatherer::~Gatherer() = default;
 long long Gatherer::rays_cast() const { return impl_->rays.load(); }
 
-Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, const ColorField* radiance,
-                                  int ignore) const {
+Gatherer::Result Gatherer::gather(const Vec3& x_given, const Vec3& n_given, const Vec3& up_given,
+                                  const ColorField* radiance, int ignore) const {
   const Impl& I = *impl_;
   const mesh::PatchGeometry& g = I.g;
+  const Vec3 x = I.point(x_given), n = I.direction(n_given), up = I.direction(up_given);
   Result r;
   // Occlusion is possible when some patch can block a segment from x: x behind some patch's plane, or patches
   // that can block segments between scene points.
@@ -647,16 +671,17 @@ Gatherer::Result Gatherer::gather(const Vec3& x, const Vec3& n, const Vec3& up, 
   return r;
 }
 
-Moments Gatherer::open(const Vec3& x, const Vec3& n, const Vec3& up, int ignore,
+Moments Gatherer::open(const Vec3& x_given, const Vec3& n_given, const Vec3& up_given, int ignore,
                        const std::vector<char>& likely_visible) const {
   const Impl& I = *impl_;
+  const Vec3 x = I.point(x_given), n = I.direction(n_given), up = I.direction(up_given);
   if (likely_visible.empty()) return open_moments(I.merged, x, n, up, I.skip_group(ignore), nullptr);
   thread_local std::vector<char> first_group;
   I.first_flags(likely_visible, first_group);
   return open_moments(I.merged, x, n, up, I.skip_group(ignore), &first_group);
 }
 
-const mesh::PatchGeometry& Gatherer::geometry() const { return impl_->g; }
+const mesh::PatchGeometry& Gatherer::geometry() const { return impl_->given; }
 
 namespace {
 

@@ -57,13 +57,9 @@ void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double
 // boxes are axis-aligned: the generated 10k building turned about (3, -1, 2) by 1.1 rad proved 2.7x fewer pairs clear
 // (hierarchical form factors 3.9 -> 10.6 s; 5.2 s on the turned copy). A copy of g moved so that its bounding-box
 // centre is at the origin (if that centre lies farther from the origin than the box's diagonal) and turned so that
-// the directions most of its area faces (alignment(g)) lie along the axes (if they are more than 1 degree off); else
-// null.
+// the directions most of its area faces (mesh::alignment(g)) lie along the axes (if they are more than 1 degree off);
+// else null.
 std::unique_ptr<mesh::PatchGeometry> moved_to_origin(const mesh::PatchGeometry& g);
-// The rotation taking the normal direction with the most area within 1 degree of it to z, and the direction across
-// it with the most such area (counting the one at right angles to both too) to x; the identity if both lie within 1
-// degree of an axis already. Candidates: the normals of the 64 largest patches and of 192 spread over the patches.
-Eigen::Matrix3d alignment(const mesh::PatchGeometry& g);
 
 // Signed Lambert contour sum sum_k theta_k n.c_k/|c_k| (no absolute value, no 1/2pi): additive over oriented
 // contours, so holes with reversed orientation subtract (exact visibility's unions).
@@ -169,7 +165,9 @@ PairEval pair_scalar(const PatchData& P, const PointSoA& soa, int src, int tgt, 
 struct ReverseIntegral {
   double AF = 0, error = 0;
 };
-ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol);
+// entry_tol: the tolerance the entry was computed to; where pair_scalar took the bound of two clipped polygons apart
+// instead of the integral (within half of it), so does this, and the two agree.
+ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol, double entry_tol);
 
 // Signed distances of polygon corners to a plane: returns (min, max).
 std::array<double, 2> plane_range(std::span<const Vec3> poly, const Vec3& n, double offset);

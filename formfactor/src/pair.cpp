@@ -73,55 +73,6 @@ void outer_rule(std::span<const Vec3> poly, std::span<const std::array<int, 3>> 
   for (size_t k = first; k < out.size(); ++k) out[k][3] /= total;
 }
 
-Eigen::Matrix3d alignment(const mesh::PatchGeometry& g) {
-  const int n = g.size();
-  if (n == 0) return Eigen::Matrix3d::Identity();
-  // Candidate directions: the normals of the 64 largest patches and of 192 spread over the patch order (sign-free),
-  // scored by the area of (at most 65,536 evenly spread) patches whose normal lies within 1 degree of them (and, for
-  // the second axis, of the direction at right angles in the first axis' plane).
-  std::vector<int> order(static_cast<size_t>(n));
-  for (int p = 0; p < n; ++p) order[size_t(p)] = p;
-  const size_t m = std::min<size_t>(64, order.size());
-  std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(m), order.end(), [&](int a, int b) {
-    return g.area[size_t(a)] > g.area[size_t(b)] || (g.area[size_t(a)] == g.area[size_t(b)] && a < b);
-  });
-  std::vector<int> candidates(order.begin(), order.begin() + std::ptrdiff_t(m));
-  for (int k = 0; k < 192 && k < n; ++k) candidates.push_back(int((long long)k * n / std::min(192, n)));
-  const int stride = std::max(1, n / 65536);
-  const double near = std::cos(kPi / 180);
-  auto score = [&](const Vec3& c) {
-    double s = 0;
-    for (int p = 0; p < n; p += stride)
-      if (std::abs(g.normal[size_t(p)].dot(c)) > near) s += g.area[size_t(p)];
-    return s;
-  };
-  Vec3 u1 = Vec3::Zero();
-  double best = -1;
-  for (int p : candidates) {
-    const Vec3& c = g.normal[size_t(p)];
-    const double sc = score(c);
-    if (sc > best) best = sc, u1 = c;
-  }
-  Vec3 u2 = Vec3::Zero();
-  best = -1;
-  for (int p : candidates) {
-    Vec3 c = g.normal[size_t(p)];
-    c -= c.dot(u1) * u1;
-    if (!(c.norm() > 0.5)) continue;  // not across the first axis
-    c.normalize();
-    const double sc = score(c) + score(u1.cross(c));
-    if (sc > best) best = sc, u2 = c;
-  }
-  if (!(u2.norm() > 0)) u2 = u1.unitOrthogonal();
-  // Already along the axes (within 1 degree each): left as it is, to the bit.
-  auto on_axis = [&](const Vec3& v) { return v.cwiseAbs().maxCoeff() > near; };
-  if (on_axis(u1) && on_axis(u2)) return Eigen::Matrix3d::Identity();
-  Eigen::Matrix3d R;
-  R.row(0) = u2.transpose();
-  R.row(1) = u1.cross(u2).transpose();
-  R.row(2) = u1.transpose();
-  return R;
-}
 
 std::unique_ptr<mesh::PatchGeometry> moved_to_origin(const mesh::PatchGeometry& g) {
   Eigen::AlignedBox3d box;
@@ -129,7 +80,7 @@ std::unique_ptr<mesh::PatchGeometry> moved_to_origin(const mesh::PatchGeometry& 
   if (box.isEmpty()) return nullptr;
   const Vec3 centre = box.center();
   const bool far = centre.norm() > box.diagonal().norm();
-  const Eigen::Matrix3d R = alignment(g);
+  const Eigen::Matrix3d R = mesh::alignment(g);
   const bool turn = !R.isIdentity(0);
   if (!far && !turn) return nullptr;
   auto t = std::make_unique<mesh::PatchGeometry>(g);
@@ -441,14 +392,14 @@ PairEval pair_eval(const PatchData& P, const PointSoA* soa, int s, int t, double
 
 }  // namespace
 
-ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol) {
+ReverseIntegral reverse_integral(const PatchData& P, int s, int t, double tol, double entry_tol) {
   const mesh::PatchGeometry& g = *P.g;
   std::vector<Vec3> cs, ct;
   clip_front(g.polygon(s), P.nrm[t], P.offset[t], P.scene_eps, cs);
   clip_front(g.polygon(t), P.nrm[s], P.offset[s], P.scene_eps, ct);
   ReverseIntegral r;
   if (cs.size() < 3 || ct.size() < 3) return r;
-  if (const double B = clipped_bound(cs, ct); B <= 0.5 * tol * P.area[s]) {  // as pair_eval
+  if (const double B = clipped_bound(cs, ct); B <= 0.5 * entry_tol * P.area[s]) {  // as pair_eval
     r.AF = 0.5 * B;
     r.error = 0.5 * B;
     return r;

@@ -131,7 +131,7 @@ void Assembler::check_reciprocity(const std::vector<Counters*>& counters) {
   tbb::parallel_for(size_t(0), sample.size(), [&](size_t k) {
     const RecipCandidate& rc = sample[k];
     const double ref_tol = 1e-2 * tol_;
-    const ReverseIntegral r = reverse_integral(P, rc.s, rc.t, ref_tol);
+    const ReverseIntegral r = reverse_integral(P, rc.s, rc.t, ref_tol, tol_);
     const double af = P.area[rc.s] * rc.F, diff = std::abs(af - r.AF), mx = std::max(std::abs(af), std::abs(r.AF));
     residual[k] = mx > 0 ? diff / mx : 0.0;
     ratio[k] = diff / P.area[rc.s] / (rc.err + r.error / P.area[rc.s] + 1e-14);

@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <string>
 
 #include "triangulate_internal.hpp"
@@ -180,6 +181,56 @@ PatchGeometry PatchGeometry::from_polygons(const std::vector<std::vector<Vec3>>&
     g.centroid.push_back(c / a);
   }
   return g;
+}
+
+Eigen::Matrix3d alignment(const PatchGeometry& g) {
+  const int n = g.size();
+  if (n == 0) return Eigen::Matrix3d::Identity();
+  // Candidate directions: the normals of the 64 largest patches and of 192 spread over the patch order (sign-free),
+  // scored by the area of (at most 65,536 evenly spread) patches whose normal lies within 1 degree of them (and, for
+  // the second axis, of the direction at right angles in the first axis' plane).
+  std::vector<int> order(static_cast<size_t>(n));
+  for (int p = 0; p < n; ++p) order[size_t(p)] = p;
+  const size_t m = std::min<size_t>(64, order.size());
+  std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(m), order.end(), [&](int a, int b) {
+    return g.area[size_t(a)] > g.area[size_t(b)] || (g.area[size_t(a)] == g.area[size_t(b)] && a < b);
+  });
+  std::vector<int> candidates(order.begin(), order.begin() + std::ptrdiff_t(m));
+  for (int k = 0; k < 192 && k < n; ++k) candidates.push_back(int((long long)k * n / std::min(192, n)));
+  const int stride = std::max(1, n / 65536);
+  const double near = std::cos(std::numbers::pi / 180);
+  auto score = [&](const Vec3& c) {
+    double s = 0;
+    for (int p = 0; p < n; p += stride)
+      if (std::abs(g.normal[size_t(p)].dot(c)) > near) s += g.area[size_t(p)];
+    return s;
+  };
+  Vec3 u1 = Vec3::Zero();
+  double best = -1;
+  for (int p : candidates) {
+    const Vec3& c = g.normal[size_t(p)];
+    const double sc = score(c);
+    if (sc > best) best = sc, u1 = c;
+  }
+  Vec3 u2 = Vec3::Zero();
+  best = -1;
+  for (int p : candidates) {
+    Vec3 c = g.normal[size_t(p)];
+    c -= c.dot(u1) * u1;
+    if (!(c.norm() > 0.5)) continue;  // not across the first axis
+    c.normalize();
+    const double sc = score(c) + score(u1.cross(c));
+    if (sc > best) best = sc, u2 = c;
+  }
+  if (!(u2.norm() > 0)) u2 = u1.unitOrthogonal();
+  // Already along the axes (within 1 degree each): left as it is, to the bit.
+  auto on_axis = [&](const Vec3& v) { return v.cwiseAbs().maxCoeff() > near; };
+  if (on_axis(u1) && on_axis(u2)) return Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R;
+  R.row(0) = u2.transpose();
+  R.row(1) = u1.cross(u2).transpose();
+  R.row(2) = u1.transpose();
+  return R;
 }
 
 }  // namespace lambert::mesh

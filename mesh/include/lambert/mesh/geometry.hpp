@@ -46,4 +46,11 @@ std::vector<int> plane_ids(const PatchGeometry& g, std::span<const int> patches,
 // polygon is degenerate (self-intersecting or zero area).
 std::vector<std::array<int, 3>> triangulate_polygon(std::span<const Vec3> polygon, const Vec3& normal);
 
+// The rotation taking the normal direction with the most area within 1 degree of it to z, and the direction across
+// it with the most such area (counting the one at right angles to both too) to x; the identity if both lie within 1
+// degree of an axis already. Candidates: the normals of the 64 largest patches and of 192 spread over the patches.
+// A building turned in its site's coordinates is turned back so that its walls and floors lie along the axes (the
+// form factors' shafts and boxes and the daylight's hemicubes are axis-aligned).
+Eigen::Matrix3d alignment(const PatchGeometry& g);
+
 }  // namespace lambert::mesh
