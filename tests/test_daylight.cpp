@@ -561,16 +561,27 @@ TEST_F(Daylight, WorkPlaneGridCoversFloorsInsetFromWalls) {
     EXPECT_NE(head.find(name), std::string::npos) << name;
 }
 
+// examples/floorplan_daylight.obj prepared upright and turned by 30 degrees about the vertical (y), with the turn.
+struct TurnedFloorPlan {
+  Eigen::Matrix3d R = Eigen::AngleAxisd(30 * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
+  mesh::Scene upright, turned;
+  TurnedFloorPlan() {
+    const mesh::PolygonSoup in = io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan_daylight.obj");
+    mesh::PolygonSoup t = in;
+    for (Vec3& p : t.positions) p = R * p;
+    upright = mesh::prepare_and_build(in, {});
+    turned = mesh::prepare_and_build(t, {});
+  }
+};
+
 // The work-plane grid of the floor plan turned by 30 degrees about the vertical, as a building placed in its site's
 // coordinates is: the same nodes relative to its rooms (turned back, within 1e-7 m: the grid's direction is an average
 // of the floor edges' angles, to ~1e-10 rad), in the same order. The grid used to run along the scene's axes: 550
 // nodes instead of 523, in other places (mean illuminance 3 % higher).
 TEST_F(Daylight, WorkPlaneGridOfATurnedBuildingFollowsItsRooms) {
-  const mesh::PolygonSoup upright = io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan_daylight.obj");
-  mesh::PolygonSoup turned = upright;
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(30 * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
-  for (Vec3& p : turned.positions) p = R * p;
-  const mesh::Scene a = mesh::prepare_and_build(upright, {}), b = mesh::prepare_and_build(turned, {});
+  const TurnedFloorPlan f;
+  const mesh::Scene &a = f.upright, &b = f.turned;
+  const Eigen::Matrix3d& R = f.R;
   daylight::WorkPlaneOptions o;
   o.spacing = 0.27;
   const auto ga = daylight::work_plane_grid(a.geometry, Vec3::UnitY(), o);
@@ -591,11 +602,8 @@ TEST_F(Daylight, WorkPlaneGridOfATurnedBuildingFollowsItsRooms) {
 // upright one's within 1e-7 of the brightest (the clipping's integer grid, ~1e-8). Without turning the sun's `up`
 // into that frame with the points, the sky would be tilted by 30 degrees.
 TEST_F(Daylight, SkyOnATurnedBuildingIsTheUprightOnes) {
-  const mesh::PolygonSoup upright = io::read_soup(std::string(LAMBERT_SOURCE_DIR) + "/examples/floorplan_daylight.obj");
-  mesh::PolygonSoup turned = upright;
-  const Eigen::Matrix3d R = Eigen::AngleAxisd(30 * M_PI / 180, Vec3::UnitY()).toRotationMatrix();
-  for (Vec3& p : turned.positions) p = R * p;
-  const mesh::Scene a = mesh::prepare_and_build(upright, {}), b = mesh::prepare_and_build(turned, {});
+  const TurnedFloorPlan f;
+  const mesh::Scene &a = f.upright, &b = f.turned;
   ASSERT_EQ(a.patches(), b.patches());
   daylight::Sky sky;  // CIE overcast, up y
   const daylight::Gatherer ga(a.geometry, 4), gb(b.geometry, 4);
