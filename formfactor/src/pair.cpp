@@ -73,7 +73,6 @@ void outer_rule(std::span<const Vec3> poly, std::span<const std::array<int, 3>> 
   for (size_t k = first; k < out.size(); ++k) out[k][3] /= total;
 }
 
-
 std::unique_ptr<mesh::PatchGeometry> moved_to_origin(const mesh::PatchGeometry& g) {
   Eigen::AlignedBox3d box;
   for (const Vec3& p : g.points) box.extend(p);

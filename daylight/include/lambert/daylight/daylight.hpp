@@ -106,10 +106,10 @@ std::vector<Sensor> read_sensors_csv(const std::string& path);
 // lower within 2 m horizontally (so table tops, beds, cupboards and shelves are not floors, a rug on the floor
 // is, and so is the floor of a storey above another; a floor step of more than 1 cm is not). Grid nodes lie on the
 // lattice origin + spacing (i + 1/2, j + 1/2) over the floors' bounding box, its axes along the direction (modulo
-// quarter turns) most floor-edge length follows (a turned building gets the upright one's nodes); a node is kept when its foot lies
-// on a floor patch, nothing but up-facing surfaces (a table top) lies between the foot and the work plane (a
-// ceiling lower than the work plane drops it), and nothing lies within `inset` (m) of it horizontally (16 rays
-// at the work plane's height: walls, and furniture reaching it). Order: floor patches in scene order, then
+// quarter turns) most floor-edge length follows (a turned building gets the upright one's nodes); a node is kept
+// when its foot lies on a floor patch, nothing but up-facing surfaces (a table top) lies between the foot and the
+// work plane (a ceiling lower than the work plane drops it), and nothing lies within `inset` (m) of it horizontally
+// (16 rays at the work plane's height: walls, and furniture reaching it). Order: floor patches in scene order, then
 // lattice rows.
 struct WorkPlaneOptions {
   double height = 0.85, spacing = 0.5, inset = 0.5;
