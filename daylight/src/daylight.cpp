@@ -460,11 +460,7 @@ struct Gatherer::Impl {
     Eigen::AlignedBox3d box;
     for (const Vec3& v : in.points) box.extend(v);
     c = box.center();
-    auto t = std::make_unique<mesh::PatchGeometry>(in);
-    for (Vec3& v : t->points) v = R * (v - c);
-    for (Vec3& v : t->centroid) v = R * (v - c);
-    for (Vec3& v : t->normal) v = R * v;
-    return t;
+    return std::make_unique<mesh::PatchGeometry>(mesh::moved_and_turned(in, c, &R));
   }
   Vec3 point(const Vec3& x) const { return own ? Vec3(R * (x - centre)) : x; }
   Vec3 direction(const Vec3& d) const { return own ? Vec3(R * d) : d; }

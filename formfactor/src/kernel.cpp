@@ -5,6 +5,7 @@
 #include "batch.hpp"
 #include "internal.hpp"
 #include "lambert/formfactor/kernel.hpp"
+#include "lambert/mesh/geometry.hpp"
 
 namespace lambert::formfactor {
 namespace detail {
@@ -21,8 +22,7 @@ void clip_front(std::span<const Vec3> poly, const Vec3& n, double offset, double
   // the other's plane, and with it a triangle of the polygon 1 mm wide and 0.5 m long behind that plane: its
   // negative cosines gave F = -2.9e-9 against an error estimate of 7.7e-10, and the solve was refused.)
   if (eps > 0 && m >= 3) {
-    Vec3 np = Vec3::Zero();
-    for (size_t k = 0; k < m; ++k) np += (poly[k] - poly[0]).cross(poly[(k + 1) % m] - poly[0]);
+    const Vec3 np = mesh::newell_normal(poly);
     const double a = np.norm(), ln = n.norm();
     if (a > 0 && ln > 0) eps *= std::min(1.0, np.cross(n).norm() / (a * ln));
   }

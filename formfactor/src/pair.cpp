@@ -82,15 +82,7 @@ std::unique_ptr<mesh::PatchGeometry> moved_to_origin(const mesh::PatchGeometry& 
   const Eigen::Matrix3d R = mesh::alignment(g);
   const bool turn = !R.isIdentity(0);
   if (!far && !turn) return nullptr;
-  auto t = std::make_unique<mesh::PatchGeometry>(g);
-  for (Vec3& p : t->points) p -= centre;
-  for (Vec3& c : t->centroid) c -= centre;
-  if (turn) {
-    for (Vec3& p : t->points) p = R * p;
-    for (Vec3& c : t->centroid) c = R * c;
-    for (Vec3& nn : t->normal) nn = R * nn;
-  }
-  return t;
+  return std::make_unique<mesh::PatchGeometry>(mesh::moved_and_turned(g, centre, turn ? &R : nullptr));
 }
 
 namespace {

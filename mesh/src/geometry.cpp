@@ -233,4 +233,16 @@ Eigen::Matrix3d alignment(const PatchGeometry& g) {
   return R;
 }
 
+PatchGeometry moved_and_turned(const PatchGeometry& g, const Vec3& centre, const Eigen::Matrix3d* R) {
+  PatchGeometry t = g;
+  for (Vec3& p : t.points) p -= centre;
+  for (Vec3& c : t.centroid) c -= centre;
+  if (R) {
+    for (Vec3& p : t.points) p = *R * p;
+    for (Vec3& c : t.centroid) c = *R * c;
+    for (Vec3& n : t.normal) n = *R * n;
+  }
+  return t;
+}
+
 }  // namespace lambert::mesh

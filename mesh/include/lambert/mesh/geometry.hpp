@@ -53,4 +53,8 @@ std::vector<std::array<int, 3>> triangulate_polygon(std::span<const Vec3> polygo
 // form factors' shafts and boxes and the daylight's hemicubes are axis-aligned).
 Eigen::Matrix3d alignment(const PatchGeometry& g);
 
+// A copy of g moved by -centre and then, if R is given, turned by it: corners and centroids x -> R (x - centre),
+// normals n -> R n (the frame the form factors and the daylight clipping work in for a far or turned model).
+PatchGeometry moved_and_turned(const PatchGeometry& g, const Vec3& centre, const Eigen::Matrix3d* R);
+
 }  // namespace lambert::mesh
