@@ -986,6 +986,7 @@ TEST(ExactVisibilityNumerics, ConvexSolidHidesTheHullOfItsProjectedCornersLikeTh
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> U(0, 1);
   auto scratch = ff::detail::make_exact_scratch();
+  std::array<int, 4> kinds{};  // how often each kind (-1 .. 2) was reported
   for (int trial = 0; trial < 200; ++trial) {
     const Vec3 x(2 * U(rng) - 1, 2 * U(rng) - 1, 0);
     std::vector<mesh::shapes::Polygons> blocks;
@@ -1019,13 +1020,26 @@ TEST(ExactVisibilityNumerics, ConvexSolidHidesTheHullOfItsProjectedCornersLikeTh
         with_ids.push_back(o);
         without.push_back({std::span<const Vec3>(q), true, -1});
       }
-    const double h = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, with_ids, *scratch);
+    int kind = -2;
+    const double h = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, with_ids, *scratch, &kind);
     const double ref = ff::detail::hidden_point_to_polygon(x, n, t, nt, true, without, *scratch);
     const double full = ff::point_to_polygon(x, n, t);
     EXPECT_NEAR(h, ref, 1e-9 * full) << "trial " << trial << " blocks " << nblocks << " x " << x.transpose();
     EXPECT_GE(h, 0.0);
     EXPECT_LE(h, full * (1 + 1e-12));
+    // The kind it reports (from the shadow's area where it knows it) against the value: nothing, all, or part of
+    // F(x -> square) hidden. Margins 1e-6 of F: the area's 1e-9 thresholds weigh the square by area, not by F.
+    ASSERT_GE(kind, -1) << "trial " << trial;
+    ++kinds[size_t(kind + 1)];
+    if (kind == 0) EXPECT_LE(h, 1e-6 * full) << "trial " << trial << " x " << x.transpose();
+    if (kind == 1) EXPECT_GE(h, (1 - 1e-6) * full) << "trial " << trial << " x " << x.transpose();
+    if (kind == 2) {
+      EXPECT_GT(h, 1e-12 * full) << "trial " << trial << " x " << x.transpose();
+      EXPECT_LT(h, (1 - 1e-12) * full) << "trial " << trial << " x " << x.transpose();
+    }
   }
+  // Each kind occurs (the shortcut decides it for one block between the point and the square; -1: the general path).
+  for (int k = 0; k < 4; ++k) EXPECT_GT(kinds[size_t(k)], 0) << "kind " << k - 1 << " never reported";
 }
 
 // A non-convex merged region (a wall with a door cut out of it, a staircase of terraced roofs) is cut into convex

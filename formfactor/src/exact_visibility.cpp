@@ -38,6 +38,7 @@ struct ExactScratch {
   std::vector<std::uint8_t> gone;                      // per occluder of a pair: in another's umbra (left out)
   std::vector<int> surv_solid;                         // per clipped occluder: its convex solid, or -1
   std::vector<int> outside;                            // solids x is outside of (their back faces left out)
+  std::vector<std::array<double, 2>> target2, shadow2, tmp2;  // one solid's 2D shadow clipped to the target
 };
 
 void ExactScratchDeleter::operator()(ExactScratch* s) const { delete s; }
@@ -196,6 +197,10 @@ bool integer_hull(const ClipperLib::Path& in, ClipperLib::Path& out) {
   return true;
 }
 
+// Keeps the part of the convex or simple polygon `in` with a . p <= b (Sutherland-Hodgman) into `out`; below.
+void clip_half_plane(const std::vector<std::array<double, 2>>& in, double ax, double ay, double b,
+                     std::vector<std::array<double, 2>>& out);
+
 constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
 // The inside test and the edges' union compare every projection with every other: above this many, Clipper's sweep
 // (n log n) does the union alone.
@@ -346,17 +351,90 @@ size_t hull_per_solid(const Vec3& x, const Vec3& nt, double t0, double hx, const
 }  // namespace
 
 double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target, const Vec3& nt,
-                               bool target_convex, std::span<const Occluder> occluders, ExactScratch& S) {
+                               bool target_convex, std::span<const Occluder> occluders, ExactScratch& S, int* kind) {
+  int unused_kind = 0;
+  int& K = kind ? *kind : unused_kind;
+  K = 0;
   const size_t mt = target.size();
   if (mt < 3 || occluders.empty()) return 0;
   const double hx = nt.dot(x - target[0]);
   if (!(hx > 0)) return 0;
+  const double t0 = nt.dot(target[0]);
   const Vec3 tc = average(target);
   // Frame of the target's plane: u along the first usable edge, v = nt x u.
   Vec3 u = Vec3::Zero();
   for (size_t k = 0; k < mt && !(u.squaredNorm() > 0); ++k) u = target[(k + 1) % mt] - target[k];
   u.normalize();
   const Vec3 v = nt.cross(u);
+  // Every occluder a face of one closed convex solid C (convex_solids), the target convex: see below. If x is
+  // outside C (in front of one of the faces), a segment from x that meets C enters it through a face facing x: the
+  // faces with x on their inner side are left out.
+  bool one_solid = target_convex && occluders[0].solid >= 0, cull = false;
+  for (const Occluder& o : occluders) one_solid = one_solid && o.solid == occluders[0].solid;
+  if (one_solid)
+    for (const Occluder& o : occluders) cull = cull || (o.cull && o.inner.dot(x) < o.inner_offset);
+  // One convex solid C whose faces' corners all lie strictly between the target's plane and x's height (not within
+  // 1e-3 of x's height, where their projections would run far out): a segment from x to the target meets C exactly
+  // where its end lies in the projection of C from x, the convex hull of the projected corners (a central projection
+  // keeps convex sets convex away from the plane through x parallel to the target). That hull is clipped to the
+  // target in its plane's frame: no clipping of faces in 3D (room with a block: the hidden part costs ~40 % less).
+  // The faces x sees from behind are left out as below; their corners are points of C all the same.
+  if (one_solid) {
+    S.uv.clear();
+    bool between = true;
+    for (const Occluder& o : occluders) {
+      if (cull && o.cull && o.inner.dot(x) >= o.inner_offset) continue;
+      for (const Vec3& q : o.poly) {
+        const double hq = nt.dot(q) - t0;
+        if (!(hq > 1e-8 * hx && hq < (1 - 1e-3) * hx)) {
+          between = false;
+          break;
+        }
+        const Vec3 y = x + (q - x) * (hx / (hx - hq));
+        S.uv.push_back({u.dot(y - tc), v.dot(y - tc)});
+      }
+      if (!between) break;
+    }
+    if (between && !S.uv.empty()) {
+      std::sort(S.uv.begin(), S.uv.end());
+      const size_t h = monotone_chain(S.uv, S.hull2, [](const std::array<double, 2>& o, const std::array<double, 2>& a,
+                                                        const std::array<double, 2>& b) {
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+      });
+      if (h < 4) return 0;
+      S.shadow2.assign(S.hull2.begin(), S.hull2.begin() + std::ptrdiff_t(h - 1));
+      // The target's edges as half-planes a . p <= b in the frame, whatever its winding.
+      double twice_area = 0;
+      S.target2.clear();
+      for (const Vec3& p : target) S.target2.push_back({u.dot(p - tc), v.dot(p - tc)});
+      for (size_t k = 0; k < mt; ++k) {
+        const auto &a = S.target2[k], &b = S.target2[(k + 1) % mt];
+        twice_area += a[0] * b[1] - a[1] * b[0];
+      }
+      const double w = twice_area < 0 ? -1 : 1;
+      for (size_t k = 0; k < mt && S.shadow2.size() >= 3; ++k) {
+        const auto &a = S.target2[k], &b = S.target2[(k + 1) % mt];
+        const double ax = w * (b[1] - a[1]), ay = w * (a[0] - b[0]), c = ax * a[0] + ay * a[1];
+        bool all_in = true;  // most edges of the target leave the shadow whole: no copy
+        for (const auto& p : S.shadow2) all_in = all_in && ax * p[0] + ay * p[1] <= c;
+        if (all_in) continue;
+        clip_half_plane(S.shadow2, ax, ay, c, S.tmp2);
+        std::swap(S.shadow2, S.tmp2);
+      }
+      if (S.shadow2.size() < 3) return 0;
+      double twice_shadow = 0;
+      S.lifted.clear();
+      for (size_t k = 0; k < S.shadow2.size(); ++k) {
+        const auto &a = S.shadow2[k], &b = S.shadow2[k + 1 < S.shadow2.size() ? k + 1 : 0];
+        twice_shadow += a[0] * b[1] - a[1] * b[0];
+        S.lifted.push_back(tc + a[0] * u + a[1] * v);
+      }
+      twice_shadow = std::abs(twice_shadow), twice_area = std::abs(twice_area);
+      K = twice_shadow <= 1e-9 * twice_area ? 0 : twice_shadow >= (1 - 1e-9) * twice_area ? 1 : 2;
+      return std::abs(signed_contour_sum(x, n, S.lifted)) / (2 * kPi);
+    }
+  }
+  K = -1;
   // The cone from x through the target (its edges if convex, else its bounding rectangle in the frame).
   S.planes.clear();
   auto add_side = [&](const Vec3& a, const Vec3& b) {
@@ -383,18 +461,10 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
     R = std::max({-lo[0], hi[0], -lo[1], hi[1]});
   }
   R *= 1 + 1e-6;
-  const double t0 = nt.dot(target[0]);
   S.planes.push_back({nt.x(), nt.y(), nt.z(), t0});                               // not behind the target
   const double top = t0 + hx * (1 - 1e-12);
   S.planes.push_back({-nt.x(), -nt.y(), -nt.z(), -top});                          // between x and the target
   S.planes.push_back({n.x(), n.y(), n.z(), n.dot(x)});                             // in front of x
-  // Every occluder a face of one closed convex solid C (convex_solids), the target convex: see below. If x is
-  // outside C (in front of one of the faces), a segment from x that meets C enters it through a face facing x: the
-  // faces with x on their inner side are left out.
-  bool one_solid = target_convex && occluders[0].solid >= 0, cull = false;
-  for (const Occluder& o : occluders) one_solid = one_solid && o.solid == occluders[0].solid;
-  if (one_solid)
-    for (const Occluder& o : occluders) cull = cull || (o.cull && o.inner.dot(x) < o.inner_offset);
   // Several solids (a street of buildings, furniture): per solid, the faces x sees from behind are left out where x
   // is outside it (in front of one of its faces), as for one solid below.
   S.outside.clear();
@@ -651,14 +721,15 @@ Vec3 bilinear(const std::array<Vec3, 4>& v, double s, double t) {
 // every corner on one side; an occluder with every corner beyond one of its planes, or behind either patch's
 // plane, meets no segment between the two), appended to `kept`. Returns kClear if none does, kHidden if one
 // convex occluder is crossed strictly inside by every segment between corners of cs and ct (the crossings of
-// all segments form the convex hull of those corner crossings: the pair is hidden), else kIntegrated.
+// all segments form the convex hull of those corner crossings: the pair is hidden), else kIntegrated. Without
+// hull_cull only the patches' planes and the occluders' own planes cull (no hull is built): for an element whose
+// parent's occluders are the faces of one convex solid, which its samples project as one hull whatever faces it
+// keeps, and which hardly ever leaves an element's hull (room with a block: 0.2 % of such elements came out clear).
 int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns, const Vec3& nt, double os,
              double ot, std::span<const Occluder> candidates, double eps, ExactScratch& S,
-             std::vector<Occluder>& kept) {
+             std::vector<Occluder>& kept, bool hull_cull) {
   S.pts.assign(cs.begin(), cs.end());
   S.pts.insert(S.pts.end(), ct.begin(), ct.end());
-  S.pts2.assign(ct.begin(), ct.end());
-  S.pts2.insert(S.pts2.end(), cs.begin(), cs.end());
   S.hull.clear();
   // The planes through an edge of P and a corner of Q with every point of P and Q on one side. `pts`: those points,
   // Q's first (P's corners off the edge lie on one side of such a plane, Q's may lie on both: the test stops sooner).
@@ -686,9 +757,8 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
       }
     }
   };
-  hull_planes(cs, ct, S.pts2);
-  hull_planes(ct, cs, S.pts);
-  const size_t first = kept.size();
+  // The candidates that can block anything at all: in front of both planes, their own plane between some corners.
+  S.kept.clear();
   for (const Occluder& candidate : candidates) {
     Occluder o = candidate;
     bool behind_s = true, behind_t = true;
@@ -716,25 +786,12 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
       }
       if (hi <= eps || lo >= -eps) continue;
     }
-    bool outside = false;
-    for (const auto& h : S.hull) {
-      const Vec3 m(h[0], h[1], h[2]);
-      bool all = true;
-      for (const Vec3& q : o.poly)
-        if (!(m.dot(q) - h[3] > eps)) {
-          all = false;
-          break;
-        }
-      if (all) {
-        outside = true;
-        break;
-      }
-    }
-    if (!outside) kept.push_back(o);
+    S.kept.push_back(o);
   }
-  if (kept.size() == first) return ExactPairResult::kClear;
-  for (size_t k = first; k < kept.size(); ++k) {
-    const Occluder& o = kept[k];
+  if (S.kept.empty()) return ExactPairResult::kClear;
+  // Hidden by one of them, tested before any hull is built (most pairs a convex occluder hides end here): an
+  // occluder that every segment crosses meets the hull, so the hull's culling below would have kept it too.
+  for (const Occluder& o : S.kept) {
     if (!o.convex) continue;
     const Vec3& nq = o.unit;  // newell_normal(o.poly).normalized(), as set above
     const double oq = o.unit_offset;
@@ -757,11 +814,35 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
         }
       }
     if (all) {
-      kept[first] = o;  // the hiding occluder alone is enough from anywhere in cs
-      kept.resize(first + 1);
+      kept.push_back(o);  // the hiding occluder alone is enough from anywhere in cs
       return ExactPairResult::kHidden;
     }
   }
+  if (hull_cull) {
+    S.pts2.assign(ct.begin(), ct.end());
+    S.pts2.insert(S.pts2.end(), cs.begin(), cs.end());
+    hull_planes(cs, ct, S.pts2);
+    hull_planes(ct, cs, S.pts);
+  }
+  const size_t first = kept.size();
+  for (const Occluder& o : S.kept) {
+    bool outside = false;
+    for (const auto& h : S.hull) {
+      const Vec3 m(h[0], h[1], h[2]);
+      bool all = true;
+      for (const Vec3& q : o.poly)
+        if (!(m.dot(q) - h[3] > eps)) {
+          all = false;
+          break;
+        }
+      if (all) {
+        outside = true;
+        break;
+      }
+    }
+    if (!outside) kept.push_back(o);
+  }
+  if (kept.size() == first) return ExactPairResult::kClear;
   return ExactPairResult::kIntegrated;
 }
 
@@ -1207,7 +1288,7 @@ void clip_half_plane(const Poly2& in, double ax, double ay, double b, Poly2& out
   auto side = [&](const std::array<double, 2>& p) { return b - (ax * p[0] + ay * p[1]); };
   double dp = side(in[k - 1]);
   for (size_t i = 0; i < k; ++i) {
-    const auto& prev = in[(i + k - 1) % k];
+    const auto& prev = in[i == 0 ? k - 1 : i - 1];
     const auto& cur = in[i];
     const double dc = side(cur);
     auto cut = [&] {
@@ -1449,7 +1530,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   const std::vector<Vec3> cs = S.cs, ct = S.ct;
   const double os = ns.dot(s[0]), ot = nt.dot(t[0]);
   std::vector<Occluder> pool;  // occluder lists of the elements: [begin, begin + count) per element
-  const int root_outcome = classify(cs, ct, ns, nt, os, ot, candidates, eps, S, pool);
+  const int root_outcome = classify(cs, ct, ns, nt, os, ot, candidates, eps, S, pool, true);
   if (root_outcome == ExactPairResult::kClear || root_outcome == ExactPairResult::kHidden) {
     res.outcome = ExactPairResult::Outcome(root_outcome);
     return res;
@@ -1487,14 +1568,19 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       sample_kind = combine(sample_kind, 1);
       return contour_sum(p, ns, ct);
     }
-    const double h = hidden_point_to_polygon(p, ns, ct, nt, t_convex,
-                                             std::span<const Occluder>(pool.data() + cur_begin, size_t(cur_count)), S);
+    int kind = -1;
+    const double h = hidden_point_to_polygon(
+        p, ns, ct, nt, t_convex, std::span<const Occluder>(pool.data() + cur_begin, size_t(cur_count)), S, &kind);
     // Within the union's rounding (~1e-9 of F(p -> t), see hidden_point_to_polygon) of nothing or of everything:
     // a sample that saw no shadow (or all of it). A residue of 1e-15 from an occluder grazing the target's plane
     // (a wall standing on the floor it borders) counted as "partly hidden" once, so the element stopped being
     // force-refined and a table leg's shadow that its 6 samples missed was never found (storey.stl: row 1.0025).
-    const double whole = h > 0 ? contour_sum(p, ns, ct) : 0;
-    sample_kind = combine(sample_kind, h <= 1e-9 * whole ? 0 : h >= (1 - 1e-9) * whole ? 1 : 2);
+    // One convex solid's shadow says which by its area (no second contour sum).
+    if (kind < 0) {
+      const double whole = h > 0 ? contour_sum(p, ns, ct) : 0;
+      kind = h <= 1e-9 * whole ? 0 : h >= (1 - 1e-9) * whole ? 1 : 2;
+    }
+    sample_kind = combine(sample_kind, kind);
     return h;
   };
   // Genz-Malik on the unit square of (s, t): the centre, (+-l2, 0), (0, +-l2), (+-l3, 0), (0, +-l3), (+-l4, +-l4),
@@ -1640,7 +1726,9 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       for (int k = 0; k < parent_count; ++k) pool.push_back(pool[size_t(parent_begin + k)]);
     } else {
       parent.assign(pool.begin() + parent_begin, pool.begin() + parent_begin + parent_count);
-      outcome = classify(corners, ct, ns, nt, os, ot, parent, eps, S, pool);
+      bool one_solid_parent = !parent.empty() && parent[0].solid >= 0;
+      for (const Occluder& o : parent) one_solid_parent = one_solid_parent && o.solid == parent[0].solid;
+      outcome = classify(corners, ct, ns, nt, os, ot, parent, eps, S, pool, !one_solid_parent);
     }
     l.occ_count = int(pool.size()) - l.occ_begin;
     if (outcome == ExactPairResult::kClear) return;  // F_hidden = 0 on e, exactly
@@ -1922,7 +2010,7 @@ std::vector<CriticalSegment> pair_critical_lines(std::span<const Vec3> s, const 
   const std::vector<Vec3> cs = S->cs, ct = S->ct;
   const double os = ns.dot(s[0]), ot = nt.dot(t[0]);
   std::vector<Occluder> pool;
-  if (classify(cs, ct, ns, nt, os, ot, candidates, eps, *S, pool) != ExactPairResult::kIntegrated) return out;
+  if (classify(cs, ct, ns, nt, os, ot, candidates, eps, *S, pool, true) != ExactPairResult::kIntegrated) return out;
   std::vector<Critical> lines;
   critical_lines_of(cs, ct, ns, os, nt, ot, pool, eps, *S, lines);
   for (const Critical& L : lines) out.push_back({L.p, L.d, L.t0, L.t1});

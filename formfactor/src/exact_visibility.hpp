@@ -49,9 +49,12 @@ struct Occluder {
 // F(x -> hidden part of target): x a point with unit normal n; target a planar simple polygon with unit
 // normal nt (front side towards x) lying in x's closed front half-space (clip it first), target_convex true
 // only if it is convex. Returns a value in [0, F(x -> target)] (up to rounding of the snapped 2D union,
-// ~1e-9 relative to the target's size). 0 if x is not strictly in front of the target's plane.
+// ~1e-9 relative to the target's size). 0 if x is not strictly in front of the target's plane. kind, if given: 0 if
+// nothing is hidden (up to 1e-9 of the target's area), 1 if all of it is, 2 if part of it, -1 if not determined
+// (compare the value with F(x -> target) then).
 double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target, const Vec3& nt,
-                               bool target_convex, std::span<const Occluder> occluders, ExactScratch& scratch);
+                               bool target_convex, std::span<const Occluder> occluders, ExactScratch& scratch,
+                               int* kind = nullptr);
 
 // Convenience for callers outside the assembly (hierarchical links, tests): the visible point-to-polygon
 // form factor, point_to_polygon(x, n, target) minus its hidden part; target may straddle x's plane.
