@@ -1031,9 +1031,11 @@ TEST(ExactVisibilityNumerics, ConvexSolidHidesTheHullOfItsProjectedCornersLikeTh
     // F(x -> square) hidden. Margins 1e-6 of F: the area's 1e-9 thresholds weigh the square by area, not by F.
     ASSERT_GE(kind, -1) << "trial " << trial;
     ++kinds[size_t(kind + 1)];
-    if (kind == 0) EXPECT_LE(h, 1e-6 * full) << "trial " << trial << " x " << x.transpose();
-    if (kind == 1) EXPECT_GE(h, (1 - 1e-6) * full) << "trial " << trial << " x " << x.transpose();
-    if (kind == 2) {
+    if (kind == 0) {
+      EXPECT_LE(h, 1e-6 * full) << "trial " << trial << " x " << x.transpose();
+    } else if (kind == 1) {
+      EXPECT_GE(h, (1 - 1e-6) * full) << "trial " << trial << " x " << x.transpose();
+    } else if (kind == 2) {
       EXPECT_GT(h, 1e-12 * full) << "trial " << trial << " x " << x.transpose();
       EXPECT_LT(h, (1 - 1e-12) * full) << "trial " << trial << " x " << x.transpose();
     }

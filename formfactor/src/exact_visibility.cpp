@@ -350,6 +350,21 @@ size_t hull_per_solid(const Vec3& x, const Vec3& nt, double t0, double hx, const
 
 }  // namespace
 
+bool convex_hides(std::span<const Vec3> a, std::span<const Vec3> b, std::span<const Vec3> q, const Vec3& unit,
+                  double offset, double eps) {
+  const size_t m = q.size();
+  if (m < 3 || !(unit.squaredNorm() > 0)) return false;
+  for (const Vec3& pa : a)
+    for (const Vec3& pb : b) {
+      const double da = unit.dot(pa) - offset, db = unit.dot(pb) - offset;
+      if (!((da > eps && db < -eps) || (da < -eps && db > eps))) return false;
+      const Vec3 p = pa + (pb - pa) * (da / (da - db));
+      for (size_t k = 0; k < m; ++k)
+        if ((q[k + 1 < m ? k + 1 : 0] - q[k]).cross(p - q[k]).dot(unit) < 0) return false;
+    }
+  return true;
+}
+
 double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target, const Vec3& nt,
                                bool target_convex, std::span<const Occluder> occluders, ExactScratch& S, int* kind) {
   int unused_kind = 0;
@@ -791,33 +806,11 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
   if (S.kept.empty()) return ExactPairResult::kClear;
   // Hidden by one of them, tested before any hull is built (most pairs a convex occluder hides end here): an
   // occluder that every segment crosses meets the hull, so the hull's culling below would have kept it too.
-  for (const Occluder& o : S.kept) {
-    if (!o.convex) continue;
-    const Vec3& nq = o.unit;  // newell_normal(o.poly).normalized(), as set above
-    const double oq = o.unit_offset;
-    bool all = true;
-    for (size_t i = 0; i < cs.size() && all; ++i)
-      for (size_t j = 0; j < ct.size() && all; ++j) {
-        const double da = nq.dot(cs[i]) - oq, db = nq.dot(ct[j]) - oq;
-        if (!((da > eps && db < -eps) || (da < -eps && db > eps))) {
-          all = false;
-          break;
-        }
-        const Vec3 p = cs[i] + (ct[j] - cs[i]) * (da / (da - db));
-        const size_t m = o.poly.size();
-        for (size_t q = 0; q < m; ++q) {
-          const Vec3 e = o.poly[(q + 1) % m] - o.poly[q];
-          if (e.cross(p - o.poly[q]).dot(nq) < 0) {
-            all = false;
-            break;
-          }
-        }
-      }
-    if (all) {
+  for (const Occluder& o : S.kept)
+    if (o.convex && convex_hides(cs, ct, o.poly, o.unit, o.unit_offset, eps)) {
       kept.push_back(o);  // the hiding occluder alone is enough from anywhere in cs
       return ExactPairResult::kHidden;
     }
-  }
   if (hull_cull) {
     S.pts2.assign(ct.begin(), ct.end());
     S.pts2.insert(S.pts2.end(), cs.begin(), cs.end());

@@ -56,6 +56,12 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
                                bool target_convex, std::span<const Occluder> occluders, ExactScratch& scratch,
                                int* kind = nullptr);
 
+// True if every segment between a corner of a and a corner of b crosses the convex polygon q (unit normal `unit`,
+// q's winding; offset = unit . q[0]) strictly inside its plane's eps-slab on both ends and inside or on q's edges:
+// then every segment between the convex hulls of a and b meets q, and q hides them from each other (exact).
+bool convex_hides(std::span<const Vec3> a, std::span<const Vec3> b, std::span<const Vec3> q, const Vec3& unit,
+                  double offset, double eps);
+
 // Convenience for callers outside the assembly (hierarchical links, tests): the visible point-to-polygon
 // form factor, point_to_polygon(x, n, target) minus its hidden part; target may straddle x's plane.
 double visible_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec3> target,

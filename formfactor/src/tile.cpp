@@ -414,6 +414,27 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                 // error is then below the tolerance whatever the visible fraction.
                 if (exact) {
                   const auto t_exact = Clock::now();
+                  // The occluder the shaft test met (or its merged polygon), if convex and crossed inside by every
+                  // segment between the two patches' corners, hides the pair: classify would prove the same from the
+                  // pair's occluders (segments between the clipped patches are among these), so the outcome does not
+                  // depend on which occluder the test met first. Room with a block: 2/3 of the pairs the exact
+                  // path proves hidden, without collecting their occluders.
+                  if (b.blocker >= 0) {
+                    const int m = merged_.of_patch.empty() ? -1 : merged_.of_patch[size_t(b.blocker)];
+                    const std::span<const Vec3> q =
+                        m >= 0 ? std::span<const Vec3>(merged_.polys[size_t(m)]) : g_.polygon(b.blocker);
+                    if (m >= 0 ? merged_.convex[size_t(m)] != 0 : convex_[size_t(b.blocker)] != 0) {
+                      const Vec3 nq = mesh::newell_normal(q);
+                      const double len = nq.norm();
+                      if (len > 0 && convex_hides(g_.polygon(i), g_.polygon(j), q, nq / len, nq.dot(q[0]) / len,
+                                                  1e-10 * scale_)) {
+                        ++c.exact_hidden;
+                        F(i, j) = 0;
+                        c.exact_seconds += seconds_since(t_exact);
+                        continue;
+                      }
+                    }
+                  }
                   b.cand.clear();
                   // Of a merged polygon, one member is enough (pair_occluders takes the polygon once).
                   tree_.collect_grouped_from(
