@@ -1583,17 +1583,27 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   // that difference is the degree-3 rule's error, far above the degree-5 rule's where the integrand is smooth. It is
   // kept if within the budget, or if its samples all saw the target hidden and `forced` says the element is refined
   // whatever its rule says; else the last 4 points give the degree-7 rule, exactly as without a budget.
+  // The centre's value and kind when push evaluated it first (kind -1: not), for rule to take as its first sample.
+  std::pair<double, int> centre = {0.0, -1};
   auto rule = [&](Elem& e, double budget = -1, bool forced = false) {
     sample_kind = -1;
     unoccluded = e.hidden;
-    auto g = [&](double a, double b) {
+    auto jacobian = [&](double a, double b) {
       const Vec3 ds = (1 - b) * (e.v[1] - e.v[0]) + b * (e.v[2] - e.v[3]);
       const Vec3 dt = (1 - a) * (e.v[3] - e.v[0]) + a * (e.v[2] - e.v[1]);
-      return std::abs(ds.cross(dt).dot(ns)) * f(bilinear(e.v, a, b));
+      return std::abs(ds.cross(dt).dot(ns));
     };
+    auto g = [&](double a, double b) { return jacobian(a, b) * f(bilinear(e.v, a, b)); };
     constexpr double l2 = 0.35856858280031809199 / 2, l3 = 0.94868329805051379960 / 2, l4 = l3,
                      l5 = 0.68824720161168529772 / 2;  // sqrt(9/70), sqrt(9/10), sqrt(9/10), sqrt(9/19), halved
-    const double c = g(0.5, 0.5);
+    double c;
+    if (centre.second >= 0) {
+      c = jacobian(0.5, 0.5) * centre.first;
+      sample_kind = centre.second;
+      centre.second = -1;
+    } else {
+      c = g(0.5, 0.5);
+    }
     const double s2a = g(0.5 - l2, 0.5) + g(0.5 + l2, 0.5), s2b = g(0.5, 0.5 - l2) + g(0.5, 0.5 + l2);
     const double s3a = g(0.5 - l3, 0.5) + g(0.5 + l3, 0.5), s3b = g(0.5, 0.5 - l3) + g(0.5, 0.5 + l3);
     const double s4 = g(0.5 - l4, 0.5 - l4) + g(0.5 + l4, 0.5 - l4) + g(0.5 + l4, 0.5 + l4) + g(0.5 - l4, 0.5 + l4);
@@ -1800,7 +1810,23 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       if (pick < 0 && have_lines && all_lines && !contact && one_convex) {
         const bool forced = outcome == ExactPairResult::kIntegrated && !e.hidden && l.occ_count > 2 &&
                             A > area_s * kForcedArea && !(l.line_count == 0 && one_solid());
-        rule(e, 0.01 * goal * (A / area_s), forced);
+        // Its shadow keeps one structure (no line crosses it, no EEE curve): the centre decides what all of it sees.
+        // No shadow there (exactly): none anywhere, F_hidden = 0 on e from one point instead of 13 (every sample of
+        // 380,671 such elements of the room with a block was 0 to 1e-25). The whole target hidden there: hidden from
+        // all of e, integrated without clipping. Else the centre's value is the rule's first sample.
+        if (!e.hidden) {
+          sample_kind = -1;
+          unoccluded = false;
+          const double hc = f(bilinear(e.v, 0.5, 0.5));
+          if (sample_kind == 0 && hc == 0) {
+            e.Q = 0, e.E = 0, e.kind = 0, e.dir = -1, e.has_Q = true;
+          } else if (sample_kind == 1) {
+            e.hidden = true;
+          } else {
+            centre = {hc, sample_kind};
+          }
+        }
+        if (!e.has_Q) rule(e, 0.01 * goal * (A / area_s), forced);
       } else {
         rule(e);
       }
