@@ -11,7 +11,6 @@
 #include <polyclipping/clipper.hpp>
 
 #include <algorithm>
-#include <functional>
 #include <array>
 #include <cmath>
 #include <queue>
@@ -1721,46 +1720,7 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
   };
   bool root_classified = false;  // the next push is the convex quad cs itself, classified at the start
   std::vector<Occluder> parent;  // the pushed element's parent's occluders (classify appends to pool)
-  // Where a contact ends (an occluder's edge or corner on the source's plane, such as a shelf's corner on the wall it
-  // hangs on), F_hidden depends on the direction from that point more than on the distance: an element with a corner
-  // there is integrated as fans from it (triangles as quads whose last two corners are that point, so that one rule
-  // coordinate is the direction), where its rules converge. As a quad its embedded rules agreed while missing the
-  // steep wedge along its edge: examples/room.obj, faces 160 -> 8, F 2.3e-8 low with an estimate of 2.6e-9.
-  // The corner (of corners_of(v, c), n of them) to fan from, or -1: exactly one corner where a contact ends, the
-  // others more than 10 contact_eps from it, and v not already a fan from it.
-  auto contact_corner = [&](const std::array<Vec3, 4>& v, std::array<Vec3, 4>& c, int& n) {
-    n = corners_of(v, c);
-    if (n < 3) return -1;
-    int found = -1;
-    for (int m = 0; m < n; ++m) {
-      bool at = false;
-      for (const auto& ct_ : contacts) at = at || (c[m] - ct_[0]).norm() <= contact_eps || (c[m] - ct_[1]).norm() <= contact_eps;
-      if (!at) continue;
-      if (found >= 0) return -1;  // two such corners: left as it is (a fan from one would leave the other a corner)
-      found = m;
-    }
-    if (found < 0) return -1;
-    for (int m = 0; m < n; ++m)
-      if (m != found && (c[m] - c[found]).norm() <= 10 * contact_eps) return -1;
-    if (n == 3 && v[2] == v[3] && c[found] == v[2]) return -1;  // already a fan from it
-    return found;
-  };
-  std::function<void(Elem, int, int, int, int, int)> push;
-  push = [&](Elem e, int parent_begin, int parent_count, int parent_lbegin, int parent_lcount, int parent_kind) {
-    if (!contacts.empty()) {
-      std::array<Vec3, 4> c;
-      int n = 0;
-      if (const int apex = contact_corner(e.v, c, n); apex >= 0) {
-        for (int m = 1; m + 1 < n; ++m) {
-          Elem fan = e;
-          fan.has_Q = false;
-          const Vec3 &p = c[(apex + m) % n], &q = c[(apex + m + 1) % n];
-          fan.v = {p, q, c[apex], c[apex]};
-          push(fan, parent_begin, parent_count, parent_lbegin, parent_lcount, parent_kind);
-        }
-        return;
-      }
-    }
+  auto push = [&](Elem e, int parent_begin, int parent_count, int parent_lbegin, int parent_lcount, int parent_kind) {
     Leaf l;
     corners.assign(e.v.begin(), e.v.end());
     l.occ_begin = int(pool.size());
