@@ -417,8 +417,8 @@ void Assembler::tile(int bi, int bj, TileBuffers& b, Counters& c) {
                   // The occluder the shaft test met (or its merged polygon), if convex and crossed inside by every
                   // segment between the two patches' corners, hides the pair: classify would prove the same from the
                   // pair's occluders (segments between the clipped patches are among these), so the outcome does not
-                  // depend on which occluder the test met first. Room with a block: 2/3 of the pairs the exact
-                  // path proves hidden, without collecting their occluders.
+                  // depend on which occluder the test met first. Room with a block: 1.05 M of the 1.24 M pairs the
+                  // exact path proves hidden, without collecting their occluders.
                   if (b.blocker >= 0) {
                     const int m = merged_.of_patch.empty() ? -1 : merged_.of_patch[size_t(b.blocker)];
                     const std::span<const Vec3> q =
