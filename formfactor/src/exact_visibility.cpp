@@ -197,9 +197,9 @@ bool integer_hull(const ClipperLib::Path& in, ClipperLib::Path& out) {
   return true;
 }
 
-// Keeps the part of the convex or simple polygon `in` with a . p <= b (Sutherland-Hodgman) into `out`; below.
-void clip_half_plane(const std::vector<std::array<double, 2>>& in, double ax, double ay, double b,
-                     std::vector<std::array<double, 2>>& out);
+// Intersects the convex counter-clockwise polygon `x` with the convex counter-clockwise polygon `c` (in place); below.
+void intersect_convex(std::vector<std::array<double, 2>>& x, const std::vector<std::array<double, 2>>& c,
+                      std::vector<std::array<double, 2>>& tmp);
 
 constexpr double kSnap = 536870912.0;  // 2^29 units per half-extent of the target: Clipper's 64-bit fast range
 // The inside test and the edges' union compare every projection with every other: above this many, Clipper's sweep
@@ -297,6 +297,16 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
 // the target's plane (height hx of x above it, t0 = nt . target[0]; frame tc, u, v), lifted back to that plane, into
 // out (counter-clockwise in (u, v), collinear corners dropped). False if it has no area (fewer than 3 distinct
 // corners).
+// The convex hull of the projected corners S.uv (sorted here) into S.hull2, counter-clockwise, collinear corners
+// dropped, S.hull2[h - 1] == S.hull2[0]; returns h (below 4: no area).
+size_t uv_hull(ExactScratch& S) {
+  std::sort(S.uv.begin(), S.uv.end());
+  return monotone_chain(S.uv, S.hull2, [](const std::array<double, 2>& o, const std::array<double, 2>& a,
+                                          const std::array<double, 2>& b) {
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+  });
+}
+
 template <class Pick>
 bool projected_hull(const Vec3& x, const Vec3& nt, double t0, double hx, const Vec3& tc, const Vec3& u, const Vec3& v,
                     size_t count, const Pick& pick, ExactScratch& S, std::vector<Vec3>& out) {
@@ -308,11 +318,7 @@ bool projected_hull(const Vec3& x, const Vec3& nt, double t0, double hx, const V
         const Vec3 y = x + (q - x) * (hx / std::max(hx - hq, 1e-12 * hx));
         S.uv.push_back({u.dot(y - tc), v.dot(y - tc)});
       }
-  std::sort(S.uv.begin(), S.uv.end());
-  const size_t h = monotone_chain(S.uv, S.hull2, [](const std::array<double, 2>& o, const std::array<double, 2>& a,
-                                                    const std::array<double, 2>& b) {
-    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-  });
+  const size_t h = uv_hull(S);
   if (h < 4) return false;  // the last corner repeats the first
   out.clear();
   for (size_t k = 0; k + 1 < h; ++k) out.push_back(tc + S.hull2[k][0] * u + S.hull2[k][1] * v);
@@ -411,14 +417,10 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
       if (!between) break;
     }
     if (between && !S.uv.empty()) {
-      std::sort(S.uv.begin(), S.uv.end());
-      const size_t h = monotone_chain(S.uv, S.hull2, [](const std::array<double, 2>& o, const std::array<double, 2>& a,
-                                                        const std::array<double, 2>& b) {
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
-      });
+      const size_t h = uv_hull(S);
       if (h < 4) return 0;
       S.shadow2.assign(S.hull2.begin(), S.hull2.begin() + std::ptrdiff_t(h - 1));
-      // The target's edges as half-planes a . p <= b in the frame, whatever its winding.
+      // The target in the frame, counter-clockwise whatever its winding.
       double twice_area = 0;
       S.target2.clear();
       for (const Vec3& p : target) S.target2.push_back({u.dot(p - tc), v.dot(p - tc)});
@@ -426,16 +428,8 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
         const auto &a = S.target2[k], &b = S.target2[(k + 1) % mt];
         twice_area += a[0] * b[1] - a[1] * b[0];
       }
-      const double w = twice_area < 0 ? -1 : 1;
-      for (size_t k = 0; k < mt && S.shadow2.size() >= 3; ++k) {
-        const auto &a = S.target2[k], &b = S.target2[(k + 1) % mt];
-        const double ax = w * (b[1] - a[1]), ay = w * (a[0] - b[0]), c = ax * a[0] + ay * a[1];
-        bool all_in = true;  // most edges of the target leave the shadow whole: no copy
-        for (const auto& p : S.shadow2) all_in = all_in && ax * p[0] + ay * p[1] <= c;
-        if (all_in) continue;
-        clip_half_plane(S.shadow2, ax, ay, c, S.tmp2);
-        std::swap(S.shadow2, S.tmp2);
-      }
+      if (twice_area < 0) std::reverse(S.target2.begin(), S.target2.end());
+      intersect_convex(S.shadow2, S.target2, S.tmp2);
       if (S.shadow2.size() < 3) return 0;
       double twice_shadow = 0;
       S.lifted.clear();
@@ -1324,8 +1318,13 @@ void intersect_convex(Poly2& x, const Poly2& c, Poly2& tmp) {
   for (size_t k = 0; k < c.size() && !x.empty(); ++k) {
     const auto &a = c[k], &b = c[(k + 1) % c.size()];
     // Inside: left of the edge a -> b, i.e. n . p <= n . a with n its outward normal.
-    const double nx = b[1] - a[1], ny = a[0] - b[0];
-    clip_half_plane(x, nx, ny, nx * a[0] + ny * a[1], tmp);
+    const double nx = b[1] - a[1], ny = a[0] - b[0], c0 = nx * a[0] + ny * a[1];
+    // An edge with all of x inside leaves it as it is (clip_half_plane would copy it unchanged): most edges of a
+    // target leave a shadow whole.
+    bool all_in = x.size() >= 3;
+    for (size_t i = 0; i < x.size() && all_in; ++i) all_in = c0 - (nx * x[i][0] + ny * x[i][1]) >= 0;
+    if (all_in) continue;
+    clip_half_plane(x, nx, ny, c0, tmp);
     std::swap(x, tmp);
   }
 }
