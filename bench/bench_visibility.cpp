@@ -115,6 +115,17 @@ int main(int argc, char** argv) {
   const ff::DenseMatrixOperator F = ff::assemble(g, o, &st);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double cpu = cpu_seconds() - cpu0;
+  // LAMBERT_BENCH_DUMP=FILE: F as raw doubles (rows of N), to compare two builds' entries.
+  if (const char* d = std::getenv("LAMBERT_BENCH_DUMP")) {
+    if (std::FILE* fp = std::fopen(d, "wb")) {
+      for (int i = 0; i < g.size(); ++i)
+        for (int j = 0; j < g.size(); ++j) {
+          const double v = F.matrix()(i, j);
+          std::fwrite(&v, sizeof v, 1, fp);
+        }
+      std::fclose(fp);
+    }
+  }
   double mx = 0, sq = 0;
   int worst = 0;
   for (int i = 0; i < g.size(); ++i) {

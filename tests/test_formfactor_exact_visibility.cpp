@@ -1353,6 +1353,90 @@ TEST(ExactVisibilityNumerics, OuterRuleErrorEstimateBoundsItsErrorAtEveryToleran
 // the plane traces (kinks where x crosses a block's face plane), without the corner-edge lines between occluders
 // (13 faces were too many for them before solids counted as one), without a target corner's lines against the
 // edges of solids' faces.
+// Occluders for pair_critical_lines and hidden_point_to_polygon: each solid of 6 faces as a closed convex block (ids
+// and culling set, as assemble's convex_solids gives them), anything else as plain polygons; `plain` gets every face
+// as a plain occluder.
+void as_occluders(const std::vector<mesh::shapes::Polygons>& solids, std::vector<ff::detail::Occluder>& with_solids,
+                  std::vector<ff::detail::Occluder>& plain) {
+  int id = 0;
+  for (const auto& solid : solids) {
+    Vec3 centre = Vec3::Zero();
+    int corners = 0;
+    for (const auto& q : solid)
+      for (const Vec3& c : q) centre += c, ++corners;
+    centre /= corners;
+    for (const auto& q : solid) {
+      ff::detail::Occluder o{std::span<const Vec3>(q), true};
+      plain.push_back(o);
+      if (solid.size() == 6) {
+        o.solid = id;
+        const Vec3 nq = mesh::newell_normal(q).normalized();
+        o.inner = nq.dot(centre - q[0]) > 0 ? nq : Vec3(-nq);
+        o.inner_offset = o.inner.dot(q[0]);
+        o.cull = true;
+      }
+      with_solids.push_back(o);
+    }
+    ++id;
+  }
+}
+
+// Samples F_hidden (hidden_point_to_polygon) every 1/4000 of each path across the source and expects every kink (a
+// second difference far above the smooth stretches'; with order 3, a third difference) within 3 steps of one of the
+// pair's critical lines (from the occluders with their solids). Sampled with the occluders plain for order 2, with
+// their solids for order 3 (a solid's shadow is a hull, not a snapped union: third differences see the union's
+// snapping, ~1e-10 of F here). Returns the number of kink samples.
+int expect_kinks_on_lines(const char* name, const Poly& s, const Vec3& ns, const Poly& t, const Vec3& nt,
+                          const std::vector<mesh::shapes::Polygons>& solids,
+                          const std::vector<std::pair<Vec3, Vec3>>& paths, size_t* line_count = nullptr,
+                          int order = 2) {
+  std::vector<ff::detail::Occluder> with_solids, plain;
+  as_occluders(solids, with_solids, plain);
+  const auto lines = ff::detail::pair_critical_lines(s, ns, t, nt, with_solids, 2.0);
+  EXPECT_FALSE(lines.empty()) << name;
+  if (line_count) *line_count = lines.size();
+  auto distance = [&](const Vec3& x) {
+    double best = INFINITY;
+    for (const auto& L : lines) {
+      const double u = std::clamp((x - L.p).dot(L.d), L.t0, L.t1);
+      best = std::min(best, (x - (L.p + u * L.d)).norm());
+    }
+    return best;
+  };
+  auto scratch = ff::detail::make_exact_scratch();
+  int kinks = 0;
+  for (const auto& [a, b] : paths) {
+    const int N = 4000;
+    const double step = (b - a).norm() / N;
+    std::vector<double> h(N + 1);
+    for (int i = 0; i <= N; ++i)
+      h[size_t(i)] = ff::detail::hidden_point_to_polygon(a + (b - a) * (double(i) / N), ns, t, nt, true,
+                                                         order == 2 ? plain : with_solids, *scratch);
+    // Second differences (order 2) or third (order 3: h[i - 1], ..., h[i + 2]).
+    std::vector<double> d2(N + 1, 0), sorted;
+    for (int i = 1; i + order - 1 <= N; ++i)
+      d2[size_t(i)] = order == 2 ? std::abs(h[size_t(i - 1)] - 2 * h[size_t(i)] + h[size_t(i + 1)])
+                                 : std::abs(h[size_t(i - 1)] - 3 * h[size_t(i)] + 3 * h[size_t(i + 1)] - h[size_t(i + 2)]);
+    sorted.assign(d2.begin() + 1, d2.end() - order + 1);
+    std::nth_element(sorted.begin(), sorted.begin() + N / 2, sorted.end());
+    // A kink of slope jump J gives ~J * step; a smooth stretch ~h'' * step^2, 4,000x less: 100x the median
+    // second difference (and 1e-9 of the largest value, above Clipper's snapping) separates them. With order 3 a
+    // jump of h'' (a corner's projection crossing an edge: the area beyond grows as the square) gives ~J step^2
+    // against h''' step^3: 100x the median and 1e-12 of the largest value.
+    const double floor = (order == 2 ? 1e-9 : 1e-12) * *std::max_element(h.begin(), h.end());
+    const double threshold = std::max(100 * sorted[size_t(N / 2)], floor);
+    for (int i = 1; i + order - 1 <= N; ++i) {
+      if (!(d2[size_t(i)] > threshold)) continue;
+      ++kinks;
+      const Vec3 x = a + (b - a) * (double(i) / N);
+      EXPECT_LE(distance(x), 3 * step) << name << ": kink at sample " << i << " x " << x.transpose()
+                                       << ", second difference " << d2[size_t(i)] << " (threshold " << threshold
+                                       << "), nearest line " << distance(x);
+    }
+  }
+  return kinks;
+}
+
 TEST(ExactVisibilityNumerics, EveryKinkOfTheHiddenPartLiesOnACriticalLine) {
   const Poly s = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)};              // floor, faces +z
   const Poly t = {Vec3(0.2, 0.3, 1), Vec3(0.2, 0.9, 1), Vec3(0.8, 0.9, 1), Vec3(0.8, 0.3, 1)};  // ceiling, faces -z
@@ -1368,69 +1452,51 @@ TEST(ExactVisibilityNumerics, EveryKinkOfTheHiddenPartLiesOnACriticalLine) {
         mesh::shapes::box(Vec3(0.5, 0.5, 0.3), Vec3(0.65, 0.75, 0.45), 1, false),
         {{Vec3(0.4, 0.2, 0.75), Vec3(0.7, 0.25, 0.75), Vec3(0.65, 0.45, 0.8), Vec3(0.45, 0.4, 0.78)}}}}};
   for (const Scene& sc : scenes) {
-    std::vector<ff::detail::Occluder> with_solids, plain;
-    int id = 0;
-    for (const auto& solid : sc.solids) {
-      Vec3 centre = Vec3::Zero();
-      int corners = 0;
-      for (const auto& q : solid)
-        for (const Vec3& c : q) centre += c, ++corners;
-      centre /= corners;
-      for (const auto& q : solid) {
-        ff::detail::Occluder o{std::span<const Vec3>(q), true};
-        plain.push_back(o);
-        if (solid.size() == 6) {
-          o.solid = id;
-          const Vec3 nq = mesh::newell_normal(q).normalized();
-          o.inner = nq.dot(centre - q[0]) > 0 ? nq : Vec3(-nq);
-          o.inner_offset = o.inner.dot(q[0]);
-          o.cull = true;
-        }
-        with_solids.push_back(o);
-      }
-      ++id;
-    }
-    const auto lines = ff::detail::pair_critical_lines(s, ns, t, nt, with_solids, 2.0);
-    ASSERT_FALSE(lines.empty()) << sc.name;
-    auto distance = [&](const Vec3& x) {
-      double best = INFINITY;
-      for (const auto& L : lines) {
-        const double u = std::clamp((x - L.p).dot(L.d), L.t0, L.t1);
-        best = std::min(best, (x - (L.p + u * L.d)).norm());
-      }
-      return best;
-    };
-    auto scratch = ff::detail::make_exact_scratch();
-    int kinks = 0;
-    for (const auto& [a, b] : {std::pair{Vec3(0.02, 0.1, 0), Vec3(0.98, 0.93, 0)},
-                               std::pair{Vec3(0.05, 0.9, 0), Vec3(0.95, 0.05, 0)},
-                               std::pair{Vec3(0.5, 0.01, 0), Vec3(0.47, 0.99, 0)}}) {
-      const int N = 4000;
-      const double step = (b - a).norm() / N;
-      std::vector<double> h(N + 1);
-      for (int i = 0; i <= N; ++i)
-        h[size_t(i)] = ff::detail::hidden_point_to_polygon(a + (b - a) * (double(i) / N), ns, t, nt, true, plain, *scratch);
-      std::vector<double> d2(N + 1, 0), sorted;
-      for (int i = 1; i < N; ++i) d2[size_t(i)] = std::abs(h[size_t(i - 1)] - 2 * h[size_t(i)] + h[size_t(i + 1)]);
-      sorted.assign(d2.begin() + 1, d2.end() - 1);
-      std::nth_element(sorted.begin(), sorted.begin() + N / 2, sorted.end());
-      // A kink of slope jump J gives ~J * step; a smooth stretch ~h'' * step^2, 4,000x less: 100x the median
-      // second difference (and 1e-9 of the largest value, above Clipper's snapping) separates them.
-      const double threshold = std::max(100 * sorted[size_t(N / 2)], 1e-9 * *std::max_element(h.begin(), h.end()));
-      for (int i = 1; i < N; ++i) {
-        if (!(d2[size_t(i)] > threshold)) continue;
-        ++kinks;
-        const Vec3 x = a + (b - a) * (double(i) / N);
-        EXPECT_LE(distance(x), 3 * step) << sc.name << ": kink at sample " << i << " x " << x.transpose()
-                                         << ", second difference " << d2[size_t(i)] << " (threshold " << threshold
-                                         << "), nearest line " << distance(x);
-      }
-    }
+    size_t lines = 0;
+    const int kinks = expect_kinks_on_lines(sc.name, s, ns, t, nt, sc.solids,
+                                            {{Vec3(0.02, 0.1, 0), Vec3(0.98, 0.93, 0)},
+                                             {Vec3(0.05, 0.9, 0), Vec3(0.95, 0.05, 0)},
+                                             {Vec3(0.5, 0.01, 0), Vec3(0.47, 0.99, 0)}},
+                                            &lines);
     EXPECT_GE(kinks, 6) << sc.name << ": the paths cross penumbra edges";
-    std::printf("%s: %zu lines, %d kink samples\n", sc.name, lines.size(), kinks);
+    std::printf("%s: %zu lines, %d kink samples\n", sc.name, lines, kinks);
   }
 }
 
+// A block's corners and edges that lie on its silhouette from no point of the source make no lines (their projections
+// stay inside its shadow); those on it from part or all of the source keep theirs. The source, a floor patch beside
+// and below the block, sees its bottom, left and front faces from the front everywhere: the corner where those three
+// meet is never on the silhouette, and the corners where they meet the back, right or top faces always are (the
+// left-back-top one's projection crosses the target's far edge, a kink). Fails if a corner or an edge whose faces
+// face the source differently is taken for one that never is.
+TEST(ExactVisibilityNumerics, BlockCornersOnTheSilhouetteKeepTheirLinesAndOnlyThose) {
+  const Poly s = {Vec3(0, 0, 0), Vec3(0.3, 0, 0), Vec3(0.3, 0.3, 0), Vec3(0, 0.3, 0)};      // floor patch, faces +z
+  const Poly t = {Vec3(0, 0, 1), Vec3(0, 1, 1), Vec3(1, 1, 1), Vec3(1, 0, 1)};              // ceiling, faces -z
+  const Vec3 ns(0, 0, 1), nt(0, 0, -1);
+  const std::vector<mesh::shapes::Polygons> block = {
+      mesh::shapes::box(Vec3(0.35, 0.45, 0.4), Vec3(0.6, 0.7, 0.6), 1, false)};
+  size_t lines = 0;
+  const int kinks = expect_kinks_on_lines("block beside the source", s, ns, t, nt, block,
+                                          {{Vec3(0.01, 0.02, 0), Vec3(0.29, 0.28, 0)},
+                                           {Vec3(0.15, 0.01, 0), Vec3(0.14, 0.29, 0)},
+                                           {Vec3(0.01, 0.27, 0), Vec3(0.29, 0.03, 0)}},
+                                          &lines, 3);
+  EXPECT_GE(kinks, 3) << "the paths cross penumbra edges";
+  // The near corner (0.35, 0.45, 0.4) lines up with the target's edge y = 1 from the floor's line y = 1/12, its
+  // projection on that edge for x in [0, 0.3] (the only one of its lines that crosses the source): left out. (The
+  // corner (0.6, 0.45, 0.4) lines up with that edge from the same line, but its projection lies beyond the edge's end
+  // there.)
+  std::vector<ff::detail::Occluder> with_solids, plain;
+  as_occluders(block, with_solids, plain);
+  int through_near = 0;
+  for (const auto& L : ff::detail::pair_critical_lines(s, ns, t, nt, with_solids, 2.0)) {
+    if (!(std::abs(L.d.x()) > 1 - 1e-9 && std::abs(L.p.y() - 1.0 / 12) < 1e-9)) continue;
+    const double x0 = L.p.x() + L.t0 * L.d.x(), x1 = L.p.x() + L.t1 * L.d.x();
+    if (std::max(x0, x1) > 1e-9 && std::min(x0, x1) < 0.3 - 1e-9) ++through_near;
+  }
+  EXPECT_EQ(through_near, 0) << "the near corner is on the silhouette from no point of the source, yet has lines";
+  std::printf("block beside the source: %zu lines, %d kink samples\n", lines, kinks);
+}
 
 // A corner of one occluder lining up with an edge of another changes the hidden part only where that line of sight
 // meets the target. Two plates far apart on opposite sides of a small target: every such line misses it, so the pair

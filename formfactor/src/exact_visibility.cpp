@@ -1196,13 +1196,81 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
   // triangle (from the triangle's corner and the bottom's far edge) was left out with `>=`: integrated from the side
   // wall, F 1.8e-6 high with an estimate of 6.6e-9.
   const double on_face = 100 * eps;
+  // Lines of a closed convex solid's corners and edges that are on its silhouette from no point of the source are
+  // no events: their projections stay inside the solid's shadow, whatever the target's corners and edges do there
+  // (room with a block: 7 % of the points). A face's facing from x is linear in x, so the source's corners decide it
+  // for all of the source; a corner on (within on_face of) a face's plane decides nothing.
+  auto facing = [&](const Occluder& o) {  // +1 front from every corner of cs, -1 back from every one, 0 mixed or on
+    int front = 0, back = 0;
+    for (const Vec3& c : cs) {
+      const double d = o.inner.dot(c) - o.inner_offset;
+      if (d < -on_face) ++front;
+      else if (d > on_face) ++back;
+      else return 0;
+    }
+    return back == 0 ? 1 : front == 0 ? -1 : 0;
+  };
+  auto solid_face = [&](size_t j, int solid) { return pool[j].solid == solid && solid >= 0 && pool[j].cull; };
+  auto on_plane = [&](const Occluder& o, const Vec3& q) { return std::abs(o.inner.dot(q) - o.inner_offset) <= on_face; };
+  // The edge [a, b] of face k: on the silhouette only where k and the other face through it (a face of the solid
+  // in another plane with a and b on it) face x differently. Kept if that face is not among the pair's occluders
+  // (an open facet, or one classify left out).
+  auto never_silhouette_edge = [&](size_t k, const Vec3& a, const Vec3& b) {
+    if (!solid_face(k, pool[k].solid)) return false;
+    const int fk = facing(pool[k]);
+    if (fk == 0) return false;
+    for (size_t j = 0; j < pool.size(); ++j)
+      if (j != k && solid_face(j, pool[k].solid) && std::abs(pool[j].inner.dot(pool[k].inner)) < 1 - 1e-9 &&
+          on_plane(pool[j], a) && on_plane(pool[j], b))
+        return facing(pool[j]) == fk;
+    return false;
+  };
+  // The corner w of face k: on the silhouette only where the faces around it do not all face x the same way. Only
+  // if those faces are all among the occluders: every edge of each at w must lie on another one's plane (a closed
+  // fan; a face classify left out, or an open facet, would break it).
+  auto never_silhouette_corner = [&](size_t k, const Vec3& w) {
+    const int solid = pool[k].solid;
+    if (!solid_face(k, solid)) return false;
+    int common = 2, faces = 0;  // the facing all of them share (2: none seen yet)
+    for (size_t j = 0; j < pool.size(); ++j) {
+      if (!solid_face(j, solid) || !on_plane(pool[j], w)) continue;
+      const auto P = pool[j].poly;
+      const size_t m = P.size();
+      size_t at = m;
+      for (size_t c = 0; c < m && at == m; ++c)
+        if ((P[c] - w).lpNorm<Eigen::Infinity>() <= on_face) at = c;
+      if (at == m) return false;  // w not a corner of this face (inside one of its edges)
+      for (const Vec3& nb : {P[(at + m - 1) % m], P[(at + 1) % m]}) {
+        bool matched = false;
+        for (size_t i = 0; i < pool.size() && !matched; ++i)
+          matched = i != j && solid_face(i, solid) && on_plane(pool[i], w) && on_plane(pool[i], nb);
+        if (!matched) return false;
+      }
+      const int f = facing(pool[j]);
+      if (f == 0 || (common != 2 && f != common)) return false;
+      common = f;
+      ++faces;
+    }
+    return faces >= 3;
+  };
   for (size_t k = 0; k < occ.size(); ++k) {
     const auto& O = occ[k];
     if (O.size() < 3) continue;
     const Occluder& src = pool[k];
-    for (const Vec3& v : ct)
-      if (!(src.cull && src.inner.dot(v) > src.inner_offset + on_face)) project(v, O, true);
-    for (const Vec3& w : O) project(w, ct, true);
+    for (const Vec3& v : ct) {
+      if (src.cull && src.inner.dot(v) > src.inner_offset + on_face) continue;
+      if (std::abs(ns.dot(v) - os) <= eps) {
+        project(v, O, true);
+        continue;
+      }
+      const size_t m = O.size();
+      candidates += m;
+      for (size_t e = 0; e < m; ++e)
+        if (!never_silhouette_edge(k, O[e], O[(e + 1) % m]))
+          project_critical(v, O[e], O[(e + 1) % m], ns, os, g, true, eps, lines, within);
+    }
+    for (const Vec3& w : O)
+      if (!never_silhouette_corner(k, w)) project(w, ct, true);
     // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
     // shrinks to a segment there, and a solid's face joins or leaves its silhouette). That segment lies in the
     // occluder's plane: an event only if the target has corners strictly on both sides of it.
