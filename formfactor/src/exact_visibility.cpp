@@ -1200,16 +1200,21 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
   // no events: their projections stay inside the solid's shadow, whatever the target's corners and edges do there
   // (room with a block: 7 % of the points). A face's facing from x is linear in x, so the source's corners decide it
   // for all of the source; a corner on (within on_face of) a face's plane decides nothing.
-  auto facing = [&](const Occluder& o) {  // +1 front from every corner of cs, -1 back from every one, 0 mixed or on
+  // Per occluder: +1 if every corner of cs sees it from the front, -1 if every one from behind, 0 if mixed, on its
+  // plane, or not a solid's face.
+  std::vector<int> facing_of(occ.size(), 0);
+  for (size_t k = 0; k < occ.size(); ++k) {
+    const Occluder& o = pool[k];
+    if (o.solid < 0 || !o.cull) continue;
     int front = 0, back = 0;
     for (const Vec3& c : cs) {
       const double d = o.inner.dot(c) - o.inner_offset;
       if (d < -on_face) ++front;
       else if (d > on_face) ++back;
-      else return 0;
+      else front = back = 1;
     }
-    return back == 0 ? 1 : front == 0 ? -1 : 0;
-  };
+    facing_of[k] = back == 0 ? 1 : front == 0 ? -1 : 0;
+  }
   auto solid_face = [&](size_t j, int solid) { return pool[j].solid == solid && solid >= 0 && pool[j].cull; };
   auto on_plane = [&](const Occluder& o, const Vec3& q) { return std::abs(o.inner.dot(q) - o.inner_offset) <= on_face; };
   // The edge [a, b] of face k: on the silhouette only where k and the other face through it (a face of the solid
@@ -1217,12 +1222,12 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
   // (an open facet, or one classify left out).
   auto never_silhouette_edge = [&](size_t k, const Vec3& a, const Vec3& b) {
     if (!solid_face(k, pool[k].solid)) return false;
-    const int fk = facing(pool[k]);
+    const int fk = facing_of[k];
     if (fk == 0) return false;
     for (size_t j = 0; j < pool.size(); ++j)
       if (j != k && solid_face(j, pool[k].solid) && std::abs(pool[j].inner.dot(pool[k].inner)) < 1 - 1e-9 &&
           on_plane(pool[j], a) && on_plane(pool[j], b))
-        return facing(pool[j]) == fk;
+        return facing_of[j] == fk;
     return false;
   };
   // The corner w of face k: on the silhouette only where the faces around it do not all face x the same way. Only
@@ -1246,31 +1251,34 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
           matched = i != j && solid_face(i, solid) && on_plane(pool[i], w) && on_plane(pool[i], nb);
         if (!matched) return false;
       }
-      const int f = facing(pool[j]);
+      const int f = facing_of[j];
       if (f == 0 || (common != 2 && f != common)) return false;
       common = f;
       ++faces;
     }
     return faces >= 3;
   };
+  std::vector<char> silhouette_edge;
   for (size_t k = 0; k < occ.size(); ++k) {
     const auto& O = occ[k];
     if (O.size() < 3) continue;
     const Occluder& src = pool[k];
+    const size_t m = O.size();
+    silhouette_edge.resize(m);
+    for (size_t e = 0; e < m; ++e)
+      silhouette_edge[e] = facing_of[k] == 0 || !never_silhouette_edge(k, O[e], O[(e + 1) % m]);
     for (const Vec3& v : ct) {
       if (src.cull && src.inner.dot(v) > src.inner_offset + on_face) continue;
       if (std::abs(ns.dot(v) - os) <= eps) {
         project(v, O, true);
         continue;
       }
-      const size_t m = O.size();
       candidates += m;
       for (size_t e = 0; e < m; ++e)
-        if (!never_silhouette_edge(k, O[e], O[(e + 1) % m]))
-          project_critical(v, O[e], O[(e + 1) % m], ns, os, g, true, eps, lines, within);
+        if (silhouette_edge[e]) project_critical(v, O[e], O[(e + 1) % m], ns, os, g, true, eps, lines, within);
     }
     for (const Vec3& w : O)
-      if (!never_silhouette_corner(k, w)) project(w, ct, true);
+      if (facing_of[k] == 0 || !never_silhouette_corner(k, w)) project(w, ct, true);
     // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
     // shrinks to a segment there, and a solid's face joins or leaves its silhouette). That segment lies in the
     // occluder's plane: an event only if the target has corners strictly on both sides of it.
