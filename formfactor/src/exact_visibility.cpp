@@ -39,6 +39,11 @@ struct ExactScratch {
   std::vector<int> surv_solid;                         // per clipped occluder: its convex solid, or -1
   std::vector<int> outside;                            // solids x is outside of (their back faces left out)
   std::vector<std::array<double, 2>> target2, shadow2, tmp2;  // one solid's 2D shadow clipped to the target
+  // The target's frame for hidden_point_to_polygon, kept for the next call with the same target (corners and normal
+  // compared exactly): the points of a pair all see one target. target2: its corners in (u, v), counter-clockwise.
+  std::vector<Vec3> frame_of;
+  Vec3 frame_nt = Vec3::Zero(), frame_u = Vec3::Zero(), frame_v = Vec3::Zero(), frame_tc = Vec3::Zero();
+  double frame_twice_area = 0;
 };
 
 void ExactScratchDeleter::operator()(ExactScratch* s) const { delete s; }
@@ -360,13 +365,30 @@ bool convex_hides(std::span<const Vec3> a, std::span<const Vec3> b, std::span<co
                   double offset, double eps) {
   const size_t m = q.size();
   if (m < 3 || !(unit.squaredNorm() > 0)) return false;
-  for (const Vec3& pa : a)
-    for (const Vec3& pb : b) {
-      const double da = unit.dot(pa) - offset, db = unit.dot(pb) - offset;
-      if (!((da > eps && db < -eps) || (da < -eps && db > eps))) return false;
-      const Vec3 p = pa + (pb - pa) * (da / (da - db));
+  // Every corner of a strictly on one side of q's plane and every corner of b strictly on the other.
+  constexpr size_t kMax = 16;
+  double da[kMax], db[kMax];
+  if (a.empty() || b.empty() || a.size() > kMax || b.size() > kMax || m > kMax) return false;
+  for (size_t i = 0; i < a.size(); ++i) da[i] = unit.dot(a[i]) - offset;
+  for (size_t i = 0; i < b.size(); ++i) db[i] = unit.dot(b[i]) - offset;
+  const double sa = da[0] > eps ? 1 : da[0] < -eps ? -1 : 0;
+  if (sa == 0) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (!(sa * da[i] > eps)) return false;
+  for (size_t i = 0; i < b.size(); ++i)
+    if (!(sa * db[i] < -eps)) return false;
+  // Crossings inside q: (q[k+1] - q[k]) x (p - q[k]) . unit = (unit x (q[k+1] - q[k])) . (p - q[k]) >= 0 per edge.
+  Vec3 w[kMax];
+  double c[kMax];
+  for (size_t k = 0; k < m; ++k) {
+    w[k] = unit.cross(q[k + 1 < m ? k + 1 : 0] - q[k]);
+    c[k] = w[k].dot(q[k]);
+  }
+  for (size_t i = 0; i < a.size(); ++i)
+    for (size_t j = 0; j < b.size(); ++j) {
+      const Vec3 p = a[i] + (b[j] - a[i]) * (da[i] / (da[i] - db[j]));
       for (size_t k = 0; k < m; ++k)
-        if ((q[k + 1 < m ? k + 1 : 0] - q[k]).cross(p - q[k]).dot(unit) < 0) return false;
+        if (w[k].dot(p) < c[k]) return false;
     }
   return true;
 }
@@ -381,12 +403,26 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
   const double hx = nt.dot(x - target[0]);
   if (!(hx > 0)) return 0;
   const double t0 = nt.dot(target[0]);
-  const Vec3 tc = average(target);
-  // Frame of the target's plane: u along the first usable edge, v = nt x u.
-  Vec3 u = Vec3::Zero();
-  for (size_t k = 0; k < mt && !(u.squaredNorm() > 0); ++k) u = target[(k + 1) % mt] - target[k];
-  u.normalize();
-  const Vec3 v = nt.cross(u);
+  // Frame of the target's plane: u along the first usable edge, v = nt x u; the target's corners in it.
+  if (!(S.frame_nt == nt && S.frame_of.size() == mt && std::equal(target.begin(), target.end(), S.frame_of.begin()))) {
+    S.frame_of.assign(target.begin(), target.end());
+    S.frame_nt = nt;
+    S.frame_tc = average(target);
+    Vec3 u = Vec3::Zero();
+    for (size_t k = 0; k < mt && !(u.squaredNorm() > 0); ++k) u = target[(k + 1) % mt] - target[k];
+    S.frame_u = u.normalized();
+    S.frame_v = nt.cross(S.frame_u);
+    double twice_area = 0;
+    S.target2.clear();
+    for (const Vec3& p : target) S.target2.push_back({S.frame_u.dot(p - S.frame_tc), S.frame_v.dot(p - S.frame_tc)});
+    for (size_t k = 0; k < mt; ++k) {
+      const auto &a = S.target2[k], &b = S.target2[(k + 1) % mt];
+      twice_area += a[0] * b[1] - a[1] * b[0];
+    }
+    if (twice_area < 0) std::reverse(S.target2.begin(), S.target2.end());
+    S.frame_twice_area = std::abs(twice_area);
+  }
+  const Vec3 tc = S.frame_tc, u = S.frame_u, v = S.frame_v;
   // Every occluder a face of one closed convex solid C (convex_solids), the target convex: see below. If x is
   // outside C (in front of one of the faces), a segment from x that meets C enters it through a face facing x: the
   // faces with x on their inner side are left out.
@@ -420,15 +456,7 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
       const size_t h = uv_hull(S);
       if (h < 4) return 0;
       S.shadow2.assign(S.hull2.begin(), S.hull2.begin() + std::ptrdiff_t(h - 1));
-      // The target in the frame, counter-clockwise whatever its winding.
-      double twice_area = 0;
-      S.target2.clear();
-      for (const Vec3& p : target) S.target2.push_back({u.dot(p - tc), v.dot(p - tc)});
-      for (size_t k = 0; k < mt; ++k) {
-        const auto &a = S.target2[k], &b = S.target2[(k + 1) % mt];
-        twice_area += a[0] * b[1] - a[1] * b[0];
-      }
-      if (twice_area < 0) std::reverse(S.target2.begin(), S.target2.end());
+      // The target in the frame (S.target2), counter-clockwise whatever its winding.
       intersect_convex(S.shadow2, S.target2, S.tmp2);
       if (S.shadow2.size() < 3) return 0;
       double twice_shadow = 0;
@@ -438,7 +466,8 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
         twice_shadow += a[0] * b[1] - a[1] * b[0];
         S.lifted.push_back(tc + a[0] * u + a[1] * v);
       }
-      twice_shadow = std::abs(twice_shadow), twice_area = std::abs(twice_area);
+      twice_shadow = std::abs(twice_shadow);
+      const double twice_area = S.frame_twice_area;
       K = twice_shadow <= 1e-9 * twice_area ? 0 : twice_shadow >= (1 - 1e-9) * twice_area ? 1 : 2;
       return std::abs(signed_contour_sum(x, n, S.lifted)) / (2 * kPi);
     }
@@ -1396,11 +1425,43 @@ void intersect_convex(Poly2& x, const Poly2& c, Poly2& tmp) {
     // Inside: left of the edge a -> b, i.e. n . p <= n . a with n its outward normal.
     const double nx = b[1] - a[1], ny = a[0] - b[0], c0 = nx * a[0] + ny * a[1];
     // An edge with all of x inside leaves it as it is (clip_half_plane would copy it unchanged): most edges of a
-    // target leave a shadow whole.
-    bool all_in = x.size() >= 3;
-    for (size_t i = 0; i < x.size() && all_in; ++i) all_in = c0 - (nx * x[i][0] + ny * x[i][1]) >= 0;
+    // target leave a shadow whole. Else x is clipped as clip_half_plane does, from the same side values.
+    constexpr size_t kMax = 64;
+    const size_t n = x.size();
+    if (n < 3 || n > kMax) {
+      bool all_in = n >= 3;
+      for (size_t i = 0; i < n && all_in; ++i) all_in = c0 - (nx * x[i][0] + ny * x[i][1]) >= 0;
+      if (all_in) continue;
+      clip_half_plane(x, nx, ny, c0, tmp);
+      std::swap(x, tmp);
+      continue;
+    }
+    double d[kMax];
+    bool all_in = true;
+    for (size_t i = 0; i < n; ++i) {
+      d[i] = c0 - (nx * x[i][0] + ny * x[i][1]);
+      all_in = all_in && d[i] >= 0;
+    }
     if (all_in) continue;
-    clip_half_plane(x, nx, ny, c0, tmp);
+    tmp.clear();
+    double dp = d[n - 1];
+    for (size_t i = 0; i < n; ++i) {
+      const auto& prev = x[i == 0 ? n - 1 : i - 1];
+      const auto& cur = x[i];
+      const double dc = d[i];
+      if (dc >= 0) {
+        if (dp < 0) {
+          const double w = dp / (dp - dc);
+          tmp.push_back({prev[0] + (cur[0] - prev[0]) * w, prev[1] + (cur[1] - prev[1]) * w});
+        }
+        tmp.push_back(cur);
+      } else if (dp > 0) {
+        const double w = dp / (dp - dc);
+        tmp.push_back({prev[0] + (cur[0] - prev[0]) * w, prev[1] + (cur[1] - prev[1]) * w});
+      }
+      dp = dc;
+    }
+    if (tmp.size() < 3) tmp.clear();
     std::swap(x, tmp);
   }
 }
