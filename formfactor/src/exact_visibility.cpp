@@ -1288,6 +1288,7 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
     return faces >= 3;
   };
   std::vector<char> silhouette_edge;
+  std::vector<Vec3> corners_done;  // occluder corners whose lines against the target's edges are made
   for (size_t k = 0; k < occ.size(); ++k) {
     const auto& O = occ[k];
     if (O.size() < 3) continue;
@@ -1306,8 +1307,17 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
       for (size_t e = 0; e < m; ++e)
         if (silhouette_edge[e]) project_critical(v, O[e], O[(e + 1) % m], ns, os, g, true, eps, lines, within);
     }
-    for (const Vec3& w : O)
-      if (facing_of[k] == 0 || !never_silhouette_corner(k, w)) project(w, ct, true);
+    for (const Vec3& w : O) {
+      if (!(facing_of[k] == 0 || !never_silhouette_corner(k, w))) continue;
+      // A corner shared by several faces (a block's, three) gives the same lines from each: made once (counted as
+      // before for the cap on lines).
+      if (std::find(corners_done.begin(), corners_done.end(), w) != corners_done.end()) {
+        candidates += ct.size();
+        continue;
+      }
+      corners_done.push_back(w);
+      project(w, ct, true);
+    }
     // The trace of the occluder's plane: crossing it, x sees the occluder from its other side (its projection
     // shrinks to a segment there, and a solid's face joins or leaves its silhouette). That segment lies in the
     // occluder's plane: an event only if the target has corners strictly on both sides of it.
