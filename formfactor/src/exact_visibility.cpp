@@ -28,7 +28,8 @@ struct ExactScratch {
   ClipperLib::Paths subject, result;
   ClipperLib::Path clip_path;
   std::vector<Vec3> lifted, cs, ct, pts, pts2;
-  std::vector<Occluder> kept;
+  std::vector<Occluder> kept;           // classify: candidates given their unit normal
+  std::vector<const Occluder*> kept_ref;  // classify: the candidates that can block anything
   std::vector<std::array<double, 4>> hull;
   std::vector<std::array<double, 2>> uv, hull2;  // projected corners and their convex hull (one convex solid)
   std::vector<std::array<ClipperLib::cInt, 4>> boxes;  // per projected occluder: x_min, y_min, x_max, y_max
@@ -796,11 +797,14 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
     }
   };
   // The candidates that can block anything at all: in front of both planes, their own plane between some corners.
+  // Referred to, not copied (a candidate without its unit normal yet is copied into S.kept to get one; reserved:
+  // the references stay valid).
   S.kept.clear();
+  S.kept.reserve(candidates.size());
+  S.kept_ref.clear();
   for (const Occluder& candidate : candidates) {
-    Occluder o = candidate;
     bool behind_s = true, behind_t = true;
-    for (const Vec3& q : o.poly) {
+    for (const Vec3& q : candidate.poly) {
       behind_s = behind_s && ns.dot(q) - os <= eps;
       behind_t = behind_t && nt.dot(q) - ot <= eps;
     }
@@ -809,13 +813,17 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
     // at most at their ends, so it blocks nothing. A wall that a target or source patch touches at a corner or an
     // edge (a floor patch against the wall) meets their hull only there; kept, it made every element of the pair
     // "reachable" and its clipped sliver, a rounding residue, spent the pair's point budget.
-    if (!o.has_unit) {
+    const Occluder* op = &candidate;
+    if (!candidate.has_unit) {
+      Occluder& o = S.kept.emplace_back(candidate);
       const Vec3 nq = mesh::newell_normal(o.poly);
       const double len = nq.norm();
       o.has_unit = true;
       o.unit = len > 0 ? Vec3(nq / len) : Vec3::Zero();
       o.unit_offset = o.unit.dot(o.poly[0]);
+      op = &o;
     }
+    const Occluder& o = *op;
     if (o.unit.squaredNorm() > 0) {
       double lo = INFINITY, hi = -INFINITY;
       for (const Vec3& p : S.pts) {
@@ -824,14 +832,14 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
       }
       if (hi <= eps || lo >= -eps) continue;
     }
-    S.kept.push_back(o);
+    S.kept_ref.push_back(op);
   }
-  if (S.kept.empty()) return ExactPairResult::kClear;
+  if (S.kept_ref.empty()) return ExactPairResult::kClear;
   // Hidden by one of them, tested before any hull is built (most pairs a convex occluder hides end here): an
   // occluder that every segment crosses meets the hull, so the hull's culling below would have kept it too.
-  for (const Occluder& o : S.kept)
-    if (o.convex && convex_hides(cs, ct, o.poly, o.unit, o.unit_offset, eps)) {
-      kept.push_back(o);  // the hiding occluder alone is enough from anywhere in cs
+  for (const Occluder* o : S.kept_ref)
+    if (o->convex && convex_hides(cs, ct, o->poly, o->unit, o->unit_offset, eps)) {
+      kept.push_back(*o);  // the hiding occluder alone is enough from anywhere in cs
       return ExactPairResult::kHidden;
     }
   if (hull_cull) {
@@ -841,12 +849,12 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
     hull_planes(ct, cs, S.pts);
   }
   const size_t first = kept.size();
-  for (const Occluder& o : S.kept) {
+  for (const Occluder* o : S.kept_ref) {
     bool outside = false;
     for (const auto& h : S.hull) {
       const Vec3 m(h[0], h[1], h[2]);
       bool all = true;
-      for (const Vec3& q : o.poly)
+      for (const Vec3& q : o->poly)
         if (!(m.dot(q) - h[3] > eps)) {
           all = false;
           break;
@@ -856,7 +864,7 @@ int classify(std::span<const Vec3> cs, std::span<const Vec3> ct, const Vec3& ns,
         break;
       }
     }
-    if (!outside) kept.push_back(o);
+    if (!outside) kept.push_back(*o);
   }
   if (kept.size() == first) return ExactPairResult::kClear;
   return ExactPairResult::kIntegrated;
@@ -1865,7 +1873,6 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     }
   };
   bool root_classified = false;  // the next push is the convex quad cs itself, classified at the start
-  std::vector<Occluder> parent;  // the pushed element's parent's occluders (classify appends to pool)
   auto push = [&](Elem e, int parent_begin, int parent_count, int parent_lbegin, int parent_lcount, int parent_kind) {
     Leaf l;
     corners.assign(e.v.begin(), e.v.end());
@@ -1876,7 +1883,10 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
       pool.reserve(pool.size() + size_t(parent_count));
       for (int k = 0; k < parent_count; ++k) pool.push_back(pool[size_t(parent_begin + k)]);
     } else {
-      parent.assign(pool.begin() + parent_begin, pool.begin() + parent_begin + parent_count);
+      // classify appends at most parent_count occluders to the pool: reserved, the parent's stay where they are.
+      const size_t need = pool.size() + size_t(parent_count);
+      if (pool.capacity() < need) pool.reserve(std::max(need, 2 * pool.capacity()));  // geometric: no quadratic copies
+      const std::span<const Occluder> parent(pool.data() + parent_begin, size_t(parent_count));
       bool one_solid_parent = !parent.empty() && parent[0].solid >= 0;
       for (const Occluder& o : parent) one_solid_parent = one_solid_parent && o.solid == parent[0].solid;
       outcome = classify(corners, ct, ns, nt, os, ot, parent, eps, S, pool, !one_solid_parent);
