@@ -420,6 +420,25 @@ TEST(ExactVisibilityNumerics, FloorPlanPairsBehindManyOccludersMatchUnmergedOccl
                                  {1014, 136, 64, 1.2e-8}});
 }
 
+// convex_hides (the shaft test's shortcut and classify's hidden test): a pair of unit squares 2 apart with a disc
+// between them, as a polygon of 8 corners (its tables) and of 40 (a merged wall's many corners: the general loop). A
+// disc of radius 0.8 around the axis covers every segment between the squares' corners (they cross the disc's plane
+// within 0.71 of the axis); one of radius 0.6 does not. Both must give the same answers for both corner counts.
+TEST(ExactVisibilityNumerics, ConvexHidesWithManyCornersAsWithFew) {
+  const Poly a = {Vec3(-0.5, -0.5, 0), Vec3(0.5, -0.5, 0), Vec3(0.5, 0.5, 0), Vec3(-0.5, 0.5, 0)};
+  const Poly b = {Vec3(-0.5, -0.5, 2), Vec3(-0.5, 0.5, 2), Vec3(0.5, 0.5, 2), Vec3(0.5, -0.5, 2)};
+  for (const int corners : {8, 40})
+    for (const double radius : {0.8, 0.6}) {
+      Poly q;
+      for (int k = 0; k < corners; ++k) {
+        const double t = 2 * M_PI * k / corners;
+        q.push_back(Vec3(radius * std::cos(t), radius * std::sin(t), 1));
+      }
+      const bool hides = ff::detail::convex_hides(a, b, q, Vec3(0, 0, 1), 1.0, 1e-10);
+      EXPECT_EQ(hides, radius > 0.75) << corners << " corners, radius " << radius;
+    }
+}
+
 // Floor plan pairs whose critical lines include those between all of their occluders (9 and 51 of them), yet an
 // element no line crosses can hold a kink: where an edge of each of two occluders and one of the target line up (an
 // EEE event, a curve no line marks). Faces 2872 -> 2748: such a leaf's embedded rules agreed to 1e-12 and the entry

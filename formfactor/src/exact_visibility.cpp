@@ -368,8 +368,19 @@ bool convex_hides(std::span<const Vec3> a, std::span<const Vec3> b, std::span<co
   if (m < 3 || !(unit.squaredNorm() > 0)) return false;
   // Every corner of a strictly on one side of q's plane and every corner of b strictly on the other.
   constexpr size_t kMax = 16;
+  if (a.empty() || b.empty()) return false;
+  if (a.size() > kMax || b.size() > kMax || m > kMax) {  // many corners (a merged wall): without the tables
+    for (const Vec3& pa : a)
+      for (const Vec3& pb : b) {
+        const double ea = unit.dot(pa) - offset, eb = unit.dot(pb) - offset;
+        if (!((ea > eps && eb < -eps) || (ea < -eps && eb > eps))) return false;
+        const Vec3 p = pa + (pb - pa) * (ea / (ea - eb));
+        for (size_t k = 0; k < m; ++k)
+          if ((q[k + 1 < m ? k + 1 : 0] - q[k]).cross(p - q[k]).dot(unit) < 0) return false;
+      }
+    return true;
+  }
   double da[kMax], db[kMax];
-  if (a.empty() || b.empty() || a.size() > kMax || b.size() > kMax || m > kMax) return false;
   for (size_t i = 0; i < a.size(); ++i) da[i] = unit.dot(a[i]) - offset;
   for (size_t i = 0; i < b.size(); ++i) db[i] = unit.dot(b[i]) - offset;
   const double sa = da[0] > eps ? 1 : da[0] < -eps ? -1 : 0;
