@@ -299,10 +299,6 @@ double convex_union_contour(const ClipperLib::Paths& P, size_t count, const std:
   return total;
 }
 
-// The convex hull of the corners of the clipped occluders S.surv[k], k < count with pick(k), projected from x onto
-// the target's plane (height hx of x above it, t0 = nt . target[0]; frame tc, u, v), lifted back to that plane, into
-// out (counter-clockwise in (u, v), collinear corners dropped). False if it has no area (fewer than 3 distinct
-// corners).
 // The convex hull of the projected corners S.uv (sorted here) into S.hull2, counter-clockwise, collinear corners
 // dropped, S.hull2[h - 1] == S.hull2[0]; returns h (below 4: no area).
 size_t uv_hull(ExactScratch& S) {
@@ -313,6 +309,10 @@ size_t uv_hull(ExactScratch& S) {
   });
 }
 
+// The convex hull of the corners of the clipped occluders S.surv[k], k < count with pick(k), projected from x onto
+// the target's plane (height hx of x above it, t0 = nt . target[0]; frame tc, u, v), lifted back to that plane, into
+// out (counter-clockwise in (u, v), collinear corners dropped). False if it has no area (fewer than 3 distinct
+// corners).
 template <class Pick>
 bool projected_hull(const Vec3& x, const Vec3& nt, double t0, double hx, const Vec3& tc, const Vec3& u, const Vec3& v,
                     size_t count, const Pick& pick, ExactScratch& S, std::vector<Vec3>& out) {
@@ -1401,17 +1401,18 @@ bool critical_lines_of(std::span<const Vec3> cs, std::span<const Vec3> ct, const
 // 2D polygons (counter-clockwise) for the extended projections below.
 using Poly2 = std::vector<std::array<double, 2>>;
 
-// Keeps the part of the convex or simple polygon `in` with a . p <= b (Sutherland-Hodgman) into `out`.
-void clip_half_plane(const Poly2& in, double ax, double ay, double b, Poly2& out) {
+// Keeps the part of the convex or simple polygon `in` whose side value side(i) of corner i is >= 0, linear between
+// corners (Sutherland-Hodgman), into `out`.
+template <class Side>
+void clip_by_side(const Poly2& in, const Side& side, Poly2& out) {
   out.clear();
   const size_t k = in.size();
   if (k < 3) return;
-  auto side = [&](const std::array<double, 2>& p) { return b - (ax * p[0] + ay * p[1]); };
-  double dp = side(in[k - 1]);
+  double dp = side(k - 1);
   for (size_t i = 0; i < k; ++i) {
     const auto& prev = in[i == 0 ? k - 1 : i - 1];
     const auto& cur = in[i];
-    const double dc = side(cur);
+    const double dc = side(i);
     auto cut = [&] {
       const double w = dp / (dp - dc);
       out.push_back({prev[0] + (cur[0] - prev[0]) * w, prev[1] + (cur[1] - prev[1]) * w});
@@ -1425,6 +1426,11 @@ void clip_half_plane(const Poly2& in, double ax, double ay, double b, Poly2& out
     dp = dc;
   }
   if (out.size() < 3) out.clear();
+}
+
+// Keeps the part of the convex or simple polygon `in` with a . p <= b (Sutherland-Hodgman) into `out`.
+void clip_half_plane(const Poly2& in, double ax, double ay, double b, Poly2& out) {
+  clip_by_side(in, [&](size_t i) { return b - (ax * in[i][0] + ay * in[i][1]); }, out);
 }
 
 double signed_area(const Poly2& p) {
@@ -1454,7 +1460,7 @@ void intersect_convex(Poly2& x, const Poly2& c, Poly2& tmp) {
     // Inside: left of the edge a -> b, i.e. n . p <= n . a with n its outward normal.
     const double nx = b[1] - a[1], ny = a[0] - b[0], c0 = nx * a[0] + ny * a[1];
     // An edge with all of x inside leaves it as it is (clip_half_plane would copy it unchanged): most edges of a
-    // target leave a shadow whole. Else x is clipped as clip_half_plane does, from the same side values.
+    // target leave a shadow whole. Else x is clipped from the side values just tested.
     constexpr size_t kMax = 64;
     const size_t n = x.size();
     if (n < 3 || n > kMax) {
@@ -1472,25 +1478,7 @@ void intersect_convex(Poly2& x, const Poly2& c, Poly2& tmp) {
       all_in = all_in && d[i] >= 0;
     }
     if (all_in) continue;
-    tmp.clear();
-    double dp = d[n - 1];
-    for (size_t i = 0; i < n; ++i) {
-      const auto& prev = x[i == 0 ? n - 1 : i - 1];
-      const auto& cur = x[i];
-      const double dc = d[i];
-      if (dc >= 0) {
-        if (dp < 0) {
-          const double w = dp / (dp - dc);
-          tmp.push_back({prev[0] + (cur[0] - prev[0]) * w, prev[1] + (cur[1] - prev[1]) * w});
-        }
-        tmp.push_back(cur);
-      } else if (dp > 0) {
-        const double w = dp / (dp - dc);
-        tmp.push_back({prev[0] + (cur[0] - prev[0]) * w, prev[1] + (cur[1] - prev[1]) * w});
-      }
-      dp = dc;
-    }
-    if (tmp.size() < 3) tmp.clear();
+    clip_by_side(x, [&](size_t i) { return d[i]; }, tmp);
     std::swap(x, tmp);
   }
 }
@@ -1965,16 +1953,6 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
         if (pool[size_t(l.occ_begin + k)].solid != s0) return false;
       return s0 >= 0;
     };
-    // Two occluders among e's that are not faces of one solid (a solid's faces count as one).
-    auto two_units = [&] {
-      if (l.occ_count < 2) return false;
-      const Occluder& first = pool[size_t(l.occ_begin)];
-      for (int k = 1; k < l.occ_count; ++k) {
-        const Occluder& o = pool[size_t(l.occ_begin + k)];
-        if (first.solid < 0 || o.solid != first.solid) return true;
-      }
-      return false;
-    };
     if (!e.has_Q) {
       // No line crosses e, every kink of the pair lies on a line, e touches no contact, and its occluders are one
       // convex polygon or the faces of one convex solid in front of a convex target (their projections are convex:
@@ -2043,8 +2021,8 @@ ExactPairResult exact_hidden_pair(std::span<const Vec3> s, const Vec3& ns, doubl
     // area floor) also fixed faces 1694 -> 956 (3.9e-8 off: a leaf under 1/1000 of the source, at a notch of the
     // target) but cost CornellBox-Original 118 % more points and 12 more pairs at the point cap: not done.
     const bool mixed_unsafe =
-        e.kind == 2 && (pick >= 0 || !have_lines || (!all_lines && l.occ_count >= 2 && !one_solid()) ||
-                        (all_lines && A > area_s * kForcedArea && two_units()));
+        e.kind == 2 && (pick >= 0 || !have_lines ||
+                        (l.occ_count >= 2 && !one_solid() && (!all_lines || A > area_s * kForcedArea)));
     if (l.nkids > 0 && (mixed_unsafe || contact)) {
       double sum = 0;
       for (int k = 0; k < l.nkids; ++k) {

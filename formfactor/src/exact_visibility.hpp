@@ -58,7 +58,8 @@ double hidden_point_to_polygon(const Vec3& x, const Vec3& n, std::span<const Vec
 
 // True if every segment between a corner of a and a corner of b crosses the convex polygon q (unit normal `unit`,
 // q's winding; offset = unit . q[0]) strictly inside its plane's eps-slab on both ends and inside or on q's edges:
-// then every segment between the convex hulls of a and b meets q, and q hides them from each other (exact).
+// then every segment between the convex hulls of a and b meets q, and q hides them from each other (exact). False if
+// a or b is empty.
 bool convex_hides(std::span<const Vec3> a, std::span<const Vec3> b, std::span<const Vec3> q, const Vec3& unit,
                   double offset, double eps);
 
