@@ -117,13 +117,17 @@ int main(int argc, char** argv) {
   const double cpu = cpu_seconds() - cpu0;
   // LAMBERT_BENCH_DUMP=FILE: F as raw doubles (rows of N), to compare two builds' entries.
   if (const char* d = std::getenv("LAMBERT_BENCH_DUMP")) {
-    if (std::FILE* fp = std::fopen(d, "wb")) {
-      for (int i = 0; i < g.size(); ++i)
-        for (int j = 0; j < g.size(); ++j) {
-          const double v = F.matrix()(i, j);
-          std::fwrite(&v, sizeof v, 1, fp);
-        }
-      std::fclose(fp);
+    std::FILE* fp = std::fopen(d, "wb");
+    bool ok = fp != nullptr;
+    for (int i = 0; i < g.size() && ok; ++i)
+      for (int j = 0; j < g.size() && ok; ++j) {
+        const double v = F.matrix()(i, j);
+        ok = std::fwrite(&v, sizeof v, 1, fp) == 1;
+      }
+    if (fp && std::fclose(fp) != 0) ok = false;
+    if (!ok) {
+      std::fprintf(stderr, "bench_visibility: cannot write LAMBERT_BENCH_DUMP file %s\n", d);
+      return 1;
     }
   }
   double mx = 0, sq = 0;
